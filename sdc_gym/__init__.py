@@ -1,0 +1,23 @@
+"""sdc-gym: the Udacity self-driving-car simulators as fast, faithful Gymnasium environments.
+
+Importing the package registers the environments under the ``sdc_gym/`` namespace::
+
+    import gymnasium as gym
+    import sdc_gym  # noqa: F401  (registers the ids)
+
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"traffic": {"car_count": 20}})
+"""
+
+from gymnasium.envs.registration import register, registry
+
+__version__ = "0.1.0"
+
+_ENVIRONMENTS = {
+    "sdc_gym/HighwayLoop-v0": "sdc_gym.envs.highway_loop:HighwayLoopEnv",
+}
+
+for _env_id, _entry_point in _ENVIRONMENTS.items():
+    if _env_id not in registry:
+        register(id=_env_id, entry_point=_entry_point)
+
+__all__ = ["__version__"]

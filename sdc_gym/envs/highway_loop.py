@@ -1,0 +1,463 @@
+"""``sdc_gym/HighwayLoop-v0``: the Udacity highway path-planning simulator as a Gymnasium env."""
+
+from __future__ import annotations
+
+import dataclasses
+from collections import deque
+from typing import Any, ClassVar
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.geometry.collision import first_contact
+from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
+from sdc_gym.road.builtin_highways import get_highway_map
+from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, telemetry_message
+from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
+from sdc_gym.units import MPS_TO_MPH
+
+PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
+ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
+EGO_LENGTH_M = 4.7
+EGO_WIDTH_M = 1.9
+
+
+def _dataclass_defaults(cls: type) -> dict[str, Any]:
+    """A dataclass's fields and defaults as a plain config dict (nested dataclasses too)."""
+    defaults: dict[str, Any] = {}
+    for field in dataclasses.fields(cls):
+        if field.default is not dataclasses.MISSING:
+            value = field.default
+        elif field.default_factory is not dataclasses.MISSING:
+            value = field.default_factory()
+        else:
+            continue
+        if dataclasses.is_dataclass(value):
+            value = dataclasses.asdict(value)
+        defaults[field.name] = value
+    return defaults
+
+
+def _to_tuple(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value
+
+
+class HighwayLoopEnv(gym.Env):
+    """
+    ## Description
+
+    The highway of Udacity's path-planning project (Term 3 simulator), rebuilt for speed:
+    a closed three-lane loop of about 6.9 km with traffic, where the agent is a *path
+    planner*. Every 0.02 s physics frame the ego car is placed exactly on the next point of
+    the path it was given and faces the point after (the original's "perfect controller"),
+    so the spacing of the points is the speed. A path that runs out stops the car dead,
+    which reads as an enormous acceleration. A planner written for the original therefore
+    drives here unchanged: the observation carries the original's telemetry fields and
+    ``info["telemetry"]`` the exact telemetry object the original would send.
+
+    Traffic (12 cars by default) is simulated with numpy arrays: IDM car following, lane
+    changes when the target lane is clear by +-20 m, desired speeds of 40-50 mph for cars
+    spawned ahead of the ego and 50-60 mph behind it, recycling of cars more than 200 m
+    away, cars, SUVs, trucks and motorcycles of their own sizes, and an optional rogue mode
+    (sudden cut-ins, hard braking) for stress tests.
+
+    Driving is judged by the original's rules (see :mod:`sdc_gym.metrics`): acceleration
+    over 0.2 s blocks (limit 10 m/s^2), jerk over 1 s (10 m/s^3), speed (50 mph), leaving
+    the road, straddling a lane line for more than 3 s, and contact with another car.
+
+    ## Action Space
+
+    ``Box(low, high, shape=(path_points, 2), float32)``: the whole path as the original's
+    planners send it, map (x, y) points in metres, usually the unconsumed previous points
+    followed by new ones. ``low``/``high`` are the map's bounding box widened by 100 m.
+
+    *Sending fewer than ``path_points`` points*: either pass an array of shape ``(m, 2)``
+    with ``m <= path_points`` (a list of points works too), or pad a full array by
+    repeating the last real point: trailing repeats of the final point are not part of the
+    path (a car parked on its last point would stop dead there anyway, so the motion is the
+    same). NaN and inf are never markers: a non-finite, non-numeric or out-of-bounds point
+    raises ``ValueError`` naming the point. An empty path is allowed: the car stops dead.
+
+    When a path arrives, points before the one nearest the car are dropped (the original's
+    rule). It takes effect ``latency_steps`` physics frames after ``step`` is called; until
+    then the car keeps consuming the old path.
+
+    ## Observation Space
+
+    ``Dict``, float32 arrays in SI units (the telemetry in ``info`` has the original's):
+
+    | key                   | shape                 | content                                  |
+    |-----------------------|-----------------------|------------------------------------------|
+    | `ego`                 | (6,)                  | x (m), y (m), s (m), d (m), yaw (rad), speed (m/s) |
+    | `previous_path`       | (path_points, 2)      | unconsumed path points, zero padded      |
+    | `previous_path_count` | Discrete(path_points+1) | number of valid rows of `previous_path` |
+    | `end_path`            | (2,)                  | s, d of the last unconsumed point (0, 0 if none) |
+    | `sensor_fusion`       | (car_count, 7)        | id, x, y, vx, vy, s, d per traffic car   |
+    | `sensor_fusion_mask`  | MultiBinary(car_count) | 1 where the row holds a sensed car      |
+
+    s is arc length along the exact reference line (0 at the first map waypoint, wrapping
+    at the loop length); d is the offset to the right of the yellow centre line, so lane
+    ``i`` is centred at ``d = 2 + 4 i``.
+
+    ## Rewards
+
+    ``progress * (metres gained along s) / (speed_limit * step duration)`` (about 1 per
+    step at the 50 mph limit) plus, for each incident that began during the step, its
+    configured penalty (``reward_incident``; collision -10, others -1 by default).
+
+    ## Starting State
+
+    The ego car stands still in the middle lane at s = 124.8 m (the original's start),
+    facing along the road, with an empty path. Traffic is placed around it from the seed.
+
+    ## Episode End
+
+    Terminated: a collision when ``terminate_on_collision`` (default; set it False to
+    count collisions and drive on, like the original), or ``laps`` laps completed
+    (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
+    carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
+    distance without incident), ``is_success`` and ``termination_reason``; every step's
+    ``info`` has the same keys (``summary`` is ``None`` until the end).
+
+    ## Arguments
+
+    ``gym.make("sdc_gym/HighwayLoop-v0", config={...}, render_mode=None)``; unknown keys
+    raise ``ConfigError`` listing the valid ones. See :attr:`DEFAULT_CONFIG` for every key
+    with its unit.
+
+    ## Version History
+
+    * v0: initial version.
+    """
+
+    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"],
+                                          "render_fps": 50}
+
+    DEFAULT_CONFIG: ClassVar[dict[str, Any]] = {
+        "map": "default",            # built-in name ("default", "oval") or path to x y s dx dy
+        "path_points": 50,           # capacity of the action path (points)
+        "steps_per_action": 3,       # physics frames (0.02 s) per env step
+        "latency_steps": None,       # frames before a path takes effect; None = steps_per_action
+        "laps": 1,                   # laps for success
+        "max_duration": 600.0,       # s of simulated time before truncation
+        "terminate_on_collision": True,
+        "start_s": None,             # m; None = the map's start (124.8336)
+        "start_d": None,             # m; None = the map's start (middle lane)
+        "ego_length": EGO_LENGTH_M,  # m
+        "ego_width": EGO_WIDTH_M,    # m
+        "traffic": _dataclass_defaults(TrafficConfig),   # see sdc_gym.traffic.TrafficConfig
+        "sensors": _dataclass_defaults(SensorConfig),    # see SensorConfig
+        "incident_rules": _dataclass_defaults(IncidentRules),  # see sdc_gym.metrics
+        "reward_progress": 1.0,      # weight of normalised progress
+        "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
+                            "speed": -1.0, "lane": -1.0, "off_road": -1.0},
+        "telemetry_info": True,      # put the original's telemetry dict in info
+        "render_width": 600,         # px
+        "render_height": 600,        # px
+        "render_pixels_per_meter": 5.0,
+    }
+
+    def __init__(self, config: dict[str, Any] | None = None,
+                 render_mode: str | None = None) -> None:
+        owner = "HighwayLoop-v0"
+        self.config = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
+        cfg = self.config
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
+                             f"or None, got {render_mode!r}")
+        self.render_mode = render_mode
+        require(cfg["path_points"] >= 2, owner, "path_points", "an int >= 2", cfg["path_points"])
+        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
+                cfg["steps_per_action"])
+        if cfg["latency_steps"] is None:
+            cfg["latency_steps"] = cfg["steps_per_action"]
+        require(isinstance(cfg["latency_steps"], int) and cfg["latency_steps"] >= 0, owner,
+                "latency_steps", "None or an int >= 0", cfg["latency_steps"])
+        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
+        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+
+        self.road: HighwayMap = get_highway_map(cfg["map"])
+        traffic_cfg = dict(cfg["traffic"])
+        traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
+        try:
+            self.traffic_config = TrafficConfig(**{k: _to_tuple(v) for k, v in traffic_cfg.items()})
+            self.sensor_config = SensorConfig(**{k: _to_tuple(v)
+                                                 for k, v in cfg["sensors"].items()})
+            self.rules = IncidentRules(**{k: _to_tuple(v)
+                                          for k, v in cfg["incident_rules"].items()})
+        except (TypeError, ValueError) as error:
+            raise ConfigError(f"{owner}: {error}") from None
+        require(set(cfg["reward_incident"]) == set(INCIDENT_KINDS), owner, "reward_incident",
+                f"a mapping with exactly the kinds {list(INCIDENT_KINDS)}",
+                cfg["reward_incident"])
+
+        self.path_points = int(cfg["path_points"])
+        self.steps_per_action = int(cfg["steps_per_action"])
+        self.latency_steps = int(cfg["latency_steps"])
+        self.ego_length = float(cfg["ego_length"])
+        self.ego_width = float(cfg["ego_width"])
+        self.traffic = HighwayTraffic(self.road, self.traffic_config, dt=PHYSICS_DT,
+                                      ego_length=self.ego_length, ego_width=self.ego_width)
+        self.car_count = self.traffic_config.car_count
+        self.sensors = HighwaySensors(self.sensor_config, self.car_count, self.road.length)
+        self.metrics = DrivingMetrics(self.rules, self.road.length)
+        self.metadata = {**self.metadata,
+                         "render_fps": round(1.0 / (PHYSICS_DT * self.steps_per_action))}
+
+        low_xy = self.road.waypoints[:, :2].min(axis=0) - ACTION_MARGIN_M
+        high_xy = self.road.waypoints[:, :2].max(axis=0) + ACTION_MARGIN_M
+        self._action_low = low_xy
+        self._action_high = high_xy
+        n = self.path_points
+        self.action_space = spaces.Box(
+            low=np.tile(low_xy, (n, 1)).astype(np.float32),
+            high=np.tile(high_xy, (n, 1)).astype(np.float32), dtype=np.float32)
+        big = np.float32(1e6)
+        self.observation_space = spaces.Dict({
+            "ego": spaces.Box(-big, big, shape=(6,), dtype=np.float32),
+            "previous_path": spaces.Box(-big, big, shape=(n, 2), dtype=np.float32),
+            "previous_path_count": spaces.Discrete(n + 1),
+            "end_path": spaces.Box(-big, big, shape=(2,), dtype=np.float32),
+            "sensor_fusion": spaces.Box(-big, big, shape=(self.car_count, 7), dtype=np.float32),
+            "sensor_fusion_mask": spaces.MultiBinary(self.car_count),
+        })
+        self._incident_penalty = {kind: float(value)
+                                  for kind, value in cfg["reward_incident"].items()}
+        self._progress_scale = cfg["reward_progress"] / (
+            self.rules.speed_limit * PHYSICS_DT * self.steps_per_action)
+        self._renderer: Any = None
+        self._empty_path = np.zeros((0, 2))
+        self._state_ready = False
+
+    # ------------------------------------------------------------------ Gymnasium API
+    def reset(self, *, seed: int | None = None,
+              options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+        super().reset(seed=seed)
+        road = self.road
+        start_s = self.config["start_s"] if self.config["start_s"] is not None else road.start_s
+        start_d = self.config["start_d"] if self.config["start_d"] is not None else road.start_d
+        self._s = float(road.reference.wrap_s(start_s))
+        self._d = float(start_d)
+        self._xy = road.reference.to_xy(self._s, self._d).astype(np.float64)
+        self._yaw = float(road.reference.heading(self._s))
+        self._speed = 0.0
+        self._path = self._empty_path
+        self._path_start = 0
+        self._pending: deque[tuple[int, NDArray[np.float64]]] = deque()
+        self._frame = 0
+        self.traffic.reset(self.np_random, self._s, self._d)
+        self.sensors.reset()
+        self.metrics.reset(float(self._xy[0]), float(self._xy[1]), self._s, self._d, 0.0)
+        self._collided = False
+        self._done_reason = ""
+        self._state_ready = True
+        samples = self.traffic.samples_now()
+        self._read_sensors(samples)
+        return self._observation(), self._info([], final=False)
+
+    def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
+        if not self._state_ready:
+            raise RuntimeError("call reset() before step()")
+        path = self._validate_path(action)
+        self._pending.append((self._frame + self.latency_steps, path))
+
+        frames = self.steps_per_action
+        xy, yaw, speed = self._drive_ego(frames)
+        s, d = self.road.reference.to_frenet(
+            xy, s_guess=self._s + np.cumsum(speed) * PHYSICS_DT)
+        samples = self.traffic.advance(frames, s, d, speed)
+        contact = first_contact(
+            xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
+            self.traffic.length, self.traffic.width, self.traffic.ids)
+        progress_before = self.metrics.progress
+        incidents = self.metrics.record(xy, s, d, speed, contact)
+
+        self._xy, self._yaw, self._speed = xy[-1], float(yaw[-1]), float(speed[-1])
+        self._s, self._d = float(s[-1]), float(d[-1])
+        self._read_sensors(samples)
+
+        reward = self._progress_scale * (self.metrics.progress - progress_before)
+        for incident in incidents:
+            reward += self._incident_penalty[incident.kind]
+        terminated = truncated = False
+        if any(incident.kind == "collision" for incident in incidents):
+            self._collided = True
+            if self.config["terminate_on_collision"]:
+                terminated, self._done_reason = True, "collision"
+        if not terminated and self.metrics.laps_completed >= self.config["laps"]:
+            terminated, self._done_reason = True, "laps_completed"
+        if not terminated and self.metrics.time >= self.config["max_duration"] - 1e-9:
+            truncated, self._done_reason = True, "max_duration"
+        if self.render_mode == "human":
+            self.render()
+        info = self._info(incidents, final=terminated or truncated)
+        return self._observation(), float(reward), terminated, truncated, info
+
+    # ------------------------------------------------------------------ ego motion
+    def _validate_path(self, action: Any) -> NDArray[np.float64]:
+        """The action as an (m, 2) float array of real points, or a clear ValueError."""
+        try:
+            points = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"path must be numeric (x, y) points: {error}") from None
+        if points.size == 0:
+            return self._empty_path
+        if points.ndim != 2 or points.shape[1] != 2:
+            raise ValueError(f"path must have shape (m, 2) with m <= {self.path_points}, "
+                             f"got {points.shape}")
+        if len(points) > self.path_points:
+            raise ValueError(f"path has {len(points)} points; at most path_points = "
+                             f"{self.path_points} (raise the 'path_points' config key)")
+        finite = np.isfinite(points).all(axis=1)
+        if not finite.all():
+            bad = int(np.flatnonzero(~finite)[0])
+            raise ValueError(f"path point {bad} is not finite: {points[bad].tolist()} "
+                             "(NaN/inf are not allowed; send fewer points or repeat the last)")
+        outside = ((points < self._action_low) | (points > self._action_high)).any(axis=1)
+        if outside.any():
+            bad = int(np.flatnonzero(outside)[0])
+            raise ValueError(
+                f"path point {bad} {points[bad].tolist()} is outside the action bounds "
+                f"x in [{self._action_low[0]:.1f}, {self._action_high[0]:.1f}], "
+                f"y in [{self._action_low[1]:.1f}, {self._action_high[1]:.1f}]")
+        # Trailing repeats of the last point are padding (see the class docstring).
+        differs = np.flatnonzero(np.any(points != points[-1], axis=1))
+        last_real = int(differs[-1]) + 1 if len(differs) else 0
+        return points[: last_real + 1]
+
+    def _apply_path(self, path: NDArray[np.float64]) -> None:
+        """Adopt a newly arrived path, dropping the points before the one nearest the car."""
+        if len(path) == 0:
+            self._path, self._path_start = self._empty_path, 0
+            return
+        nearest = int(np.argmin(np.sum((path - self._xy) ** 2, axis=1)))
+        self._path, self._path_start = path, nearest
+
+    def _drive_ego(self, frames: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
+                                               NDArray[np.float64]]:
+        """Move the ego ``frames`` physics frames along its path(s); arrays per frame."""
+        start = self._xy
+        xy = np.empty((frames, 2))
+        yaw = np.empty(frames)
+        done = 0
+        while done < frames:
+            if self._pending and self._pending[0][0] <= self._frame:
+                self._apply_path(self._pending.popleft()[1])
+            horizon = frames - done
+            if self._pending:
+                horizon = min(horizon, self._pending[0][0] - self._frame)
+            remaining = self._path[self._path_start:]
+            moves = min(horizon, max(len(remaining) - 1, 0))
+            if moves:
+                xy[done:done + moves] = remaining[:moves]
+                delta = remaining[1:moves + 1] - remaining[:moves]
+                yaw[done:done + moves] = np.arctan2(delta[:, 1], delta[:, 0])
+                self._path_start += moves
+                self._xy = remaining[moves - 1]
+                self._yaw = float(yaw[done + moves - 1])
+            # Path exhausted: the car stands where it is (the original's stop dead).
+            xy[done + moves:done + horizon] = self._xy
+            yaw[done + moves:done + horizon] = self._yaw
+            done += horizon
+            self._frame += horizon
+        previous = np.vstack([start[None, :], xy])
+        speed = np.hypot(*np.diff(previous, axis=0).T) / PHYSICS_DT
+        return xy, yaw, speed
+
+    # ------------------------------------------------------------------ observation, info
+    def _read_sensors(self, samples: Any) -> None:
+        traffic = self.traffic
+        self._fusion, self._fusion_mask = self.sensors.read(
+            traffic.ids, samples.x[-1], samples.y[-1], samples.vx[-1], samples.vy[-1],
+            samples.s[-1], samples.d[-1], self.np_random)
+
+    def _remaining_path(self) -> NDArray[np.float64]:
+        return self._path[self._path_start:]
+
+    def _end_path(self, remaining: NDArray[np.float64]) -> tuple[float, float]:
+        if len(remaining) == 0:
+            return 0.0, 0.0
+        # Warm start: the path's end lies about its straight-line distance ahead.
+        guess = self._s + float(np.hypot(*(remaining[-1] - self._xy)))
+        s, d = self.road.reference.to_frenet(remaining[-1], s_guess=guess)
+        return float(s), float(d)
+
+    def _observation(self) -> dict[str, Any]:
+        remaining = self._remaining_path()
+        count = len(remaining)
+        previous = np.zeros((self.path_points, 2), dtype=np.float32)
+        previous[:count] = remaining
+        end_s, end_d = self._end_path(remaining)
+        self._end_sd = (end_s, end_d)
+        return {
+            "ego": np.array([self._xy[0], self._xy[1], self._s, self._d, self._yaw,
+                             self._speed], dtype=np.float32),
+            "previous_path": previous,
+            "previous_path_count": count,
+            "end_path": np.array([end_s, end_d], dtype=np.float32),
+            "sensor_fusion": self._fusion.astype(np.float32),
+            "sensor_fusion_mask": self._fusion_mask.astype(np.int8),
+        }
+
+    def _info(self, incidents: list[Incident], *, final: bool) -> dict[str, Any]:
+        info: dict[str, Any] = dict(self.metrics.step_info())
+        info["lane"] = int(self.road.lane_of(self._d))
+        info["new_incidents"] = [incident.kind for incident in incidents]
+        info["is_success"] = self.metrics.laps_completed >= self.config["laps"]
+        info["termination_reason"] = self._done_reason if final else ""
+        info["summary"] = self._summary() if final else None
+        if self.config["telemetry_info"]:
+            info["telemetry"] = telemetry_message(
+                float(self._xy[0]), float(self._xy[1]), self._yaw, self._speed, self._s,
+                self._d, self._remaining_path(), *self._end_sd,
+                self._fusion[self._fusion_mask])
+        return info
+
+    def _summary(self) -> dict[str, Any]:
+        summary = self.metrics.summary()
+        summary["is_success"] = self.metrics.laps_completed >= self.config["laps"]
+        summary["termination_reason"] = self._done_reason
+        summary["collided"] = self._collided
+        return summary
+
+    # ------------------------------------------------------------------ rendering
+    def render(self) -> NDArray[np.uint8] | None:
+        if self.render_mode is None:
+            gym.logger.warn("render() called without a render_mode; pass render_mode= "
+                            "'rgb_array' or 'human' to gym.make")
+            return None
+        if not self._state_ready:
+            raise RuntimeError("call reset() before render()")
+        from sdc_gym.render import HighwayRenderer, HighwayScene
+
+        if self._renderer is None:
+            self._renderer = HighwayRenderer(
+                self.road, width=self.config["render_width"],
+                height=self.config["render_height"],
+                pixels_per_meter=self.config["render_pixels_per_meter"],
+                render_fps=self.metadata["render_fps"])
+        traffic = self.traffic
+        colors = np.array([vehicle.color for vehicle in VEHICLE_TYPES], dtype=np.uint8)
+        counts = self.metrics.incident_counts
+        scene = HighwayScene(
+            ego_xy=(float(self._xy[0]), float(self._xy[1])), ego_heading=self._yaw,
+            ego_length=self.ego_length, ego_width=self.ego_width,
+            cars_xy=np.stack([traffic.x, traffic.y], axis=-1), cars_heading=traffic.heading,
+            cars_length=traffic.length, cars_width=traffic.width,
+            cars_color=colors[traffic.type_index], path_xy=self._remaining_path(),
+            speed_mph=self._speed * MPS_TO_MPH, time_s=self.metrics.time,
+            laps=self.metrics.laps_completed, distance_m=self.metrics.distance,
+            incidents=dict(counts), status=self._done_reason)
+        if self.render_mode == "rgb_array":
+            return self._renderer.render_rgb(scene)
+        self._renderer.render_human(scene)
+        return None
+
+    def close(self) -> None:
+        if self._renderer is not None:
+            self._renderer.close()
+            self._renderer = None

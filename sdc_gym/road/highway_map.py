@@ -1,0 +1,158 @@
+"""Highway maps: the original ``x y s dx dy`` format, lanes, and map selection by name or path.
+
+A :class:`HighwayMap` is a closed reference line (the yellow centre line of the Udacity
+highway) with ``lane_count`` lanes of ``lane_width`` metres to its right, lane ``i``
+centred at ``d = (i + 0.5) * lane_width`` (2, 6, 10 m for the original's three 4 m lanes).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
+
+# The original simulator's start state (middle lane, at rest, facing +x).
+ORIGINAL_START_S = 124.8336
+ORIGINAL_START_D = 6.164833
+
+
+class MapFormatError(ValueError):
+    """A map file or map name that cannot be loaded; the message says which and why."""
+
+
+@dataclass(frozen=True)
+class HighwayMap:
+    """A closed multi-lane highway.
+
+    Attributes:
+        name: built-in name or the file path it came from.
+        waypoints: (n, 5) rows ``x y s dx dy`` in the original file format (s along the
+            waypoint polyline, (dx, dy) the unit normal to the right of travel).
+        reference: the smooth reference line (the centre line, d = 0).
+        lane_count: number of lanes right of the centre line.
+        lane_width: metres.
+        start_s, start_d: the ego car's start in Frenet coordinates.
+    """
+
+    name: str
+    waypoints: NDArray[np.float64]
+    reference: ReferenceLine = field(repr=False)
+    lane_count: int = 3
+    lane_width: float = 4.0
+    start_s: float = ORIGINAL_START_S
+    start_d: float = ORIGINAL_START_D
+
+    @property
+    def length(self) -> float:
+        """Loop length in metres along the smooth reference line."""
+        return self.reference.length
+
+    @property
+    def road_width(self) -> float:
+        return self.lane_count * self.lane_width
+
+    def lane_center(self, lane: ArrayLike) -> NDArray[np.float64]:
+        """d of the centre of lane(s) ``lane`` (0 = next to the centre line)."""
+        return (np.asarray(lane, dtype=np.float64) + 0.5) * self.lane_width
+
+    def lane_of(self, d: ArrayLike) -> NDArray[np.int64]:
+        """Lane index holding offset(s) ``d``; -1 left of the road, ``lane_count`` right."""
+        lane = np.floor(np.asarray(d, dtype=np.float64) / self.lane_width).astype(np.int64)
+        return np.clip(lane, -1, self.lane_count)
+
+    @classmethod
+    def from_waypoints(
+        cls,
+        name: str,
+        xy: ArrayLike,
+        *,
+        lane_count: int = 3,
+        lane_width: float = 4.0,
+        start_s: float | None = None,
+        start_d: float | None = None,
+    ) -> HighwayMap:
+        """Build a map from centre-line points in driving order; fills s, dx, dy like the
+        original file (s along the polyline, (dx, dy) the right normal of the smooth line)."""
+        xy = np.asarray(xy, dtype=np.float64)
+        reference = ReferenceLine(xy)
+        polyline_s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+        s_on_line, _ = reference.to_frenet(xy)
+        normals = reference.normal(s_on_line)
+        waypoints = np.column_stack([xy, polyline_s, normals])
+        return cls(
+            name=name,
+            waypoints=waypoints,
+            reference=reference,
+            lane_count=lane_count,
+            lane_width=lane_width,
+            start_s=ORIGINAL_START_S if start_s is None else start_s,
+            start_d=(lane_count // 2 + 0.5) * lane_width if start_d is None else start_d,
+        )
+
+
+def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
+                     lane_width: float = 4.0) -> HighwayMap:
+    """Load a map in the original format: one waypoint per line, ``x y s dx dy``.
+
+    The smooth reference line goes through the (x, y) columns; s, dx, dy are kept as read
+    (the coarse compatibility helpers use them). Raises :class:`MapFormatError` naming the
+    file, line and problem for anything else.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise MapFormatError(f"map file not found: {path}")
+    rows: list[list[float]] = []
+    with path.open(encoding="utf-8") as handle:
+        for line_number, line in enumerate(handle, start=1):
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            fields = text.replace(",", " ").split()
+            if len(fields) != 5:
+                raise MapFormatError(
+                    f"{path}:{line_number}: expected 5 numbers 'x y s dx dy', "
+                    f"got {len(fields)} field(s): {text!r}"
+                )
+            try:
+                values = [float(value) for value in fields]
+            except ValueError as error:
+                raise MapFormatError(
+                    f"{path}:{line_number}: not a number in {text!r} ({error})"
+                ) from None
+            if not all(np.isfinite(values)):
+                raise MapFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
+            rows.append(values)
+    if len(rows) < 4:
+        raise MapFormatError(f"{path}: a closed highway needs at least 4 waypoints, got {len(rows)}")
+    waypoints = np.asarray(rows, dtype=np.float64)
+    if np.any(np.diff(waypoints[:, 2]) <= 0):
+        bad = int(np.flatnonzero(np.diff(waypoints[:, 2]) <= 0)[0]) + 2
+        raise MapFormatError(f"{path}: s must increase along the file (it does not at row {bad})")
+    normal_length = np.hypot(waypoints[:, 3], waypoints[:, 4])
+    if np.any(np.abs(normal_length - 1.0) > 0.01):
+        bad = int(np.flatnonzero(np.abs(normal_length - 1.0) > 0.01)[0]) + 1
+        raise MapFormatError(f"{path}: (dx, dy) of row {bad} is not a unit normal")
+    try:
+        reference = ReferenceLine(waypoints[:, :2])
+    except ReferenceLineError as error:
+        raise MapFormatError(f"{path}: {error}") from None
+    return HighwayMap(
+        name=str(path),
+        waypoints=waypoints,
+        reference=reference,
+        lane_count=lane_count,
+        lane_width=lane_width,
+    )
+
+
+def write_highway_map(highway: HighwayMap, path: str | os.PathLike[str]) -> None:
+    """Write ``highway`` in the original ``x y s dx dy`` format (atomically)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    np.savetxt(tmp, highway.waypoints, fmt=["%.7g", "%.7g", "%.12g", "%.7g", "%.7g"])
+    os.replace(tmp, path)

@@ -1,0 +1,137 @@
+"""What the highway planner is told: sensor fusion rows and the original telemetry message.
+
+Sensor fusion is one row per traffic car, ``[id, x, y, vx, vy, s, d]`` (m, m/s), as in the
+original. Optional, seeded imperfections: Gaussian noise on positions and velocities,
+dropouts (a car missing from a frame), and the original's quirk near the end of the loop
+where some cars report ``s = d = 0`` for several frames (the seed planner falls back to
+x, y there). All are off by default, so the default sensor is the original's noiseless one.
+
+:func:`telemetry_message` builds the flat dict the original sends in
+``42["telemetry",{...}]``: yaw in degrees, speed in mph, numbers rounded to the 7
+significant digits of the original's 32-bit float printing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sdc_gym.units import MPS_TO_MPH
+
+FUSION_FIELDS = ("id", "x", "y", "vx", "vy", "s", "d")
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """Sensor imperfections; all zero (off) by default.
+
+    Attributes:
+        position_noise: m, standard deviation added to x, y, s and d of each car.
+        velocity_noise: m/s, standard deviation added to vx and vy.
+        dropout_probability: chance per car per frame that the car is missing.
+        zero_sd_probability: chance per car per frame, inside the zone, that a fault
+            begins during which the car reports s = d = 0 (the original's quirk).
+        zero_sd_zone: m before the loop's seam (s = length) where the quirk can begin.
+        zero_sd_frames: (min, max) frames a fault lasts.
+    """
+
+    position_noise: float = 0.0
+    velocity_noise: float = 0.0
+    dropout_probability: float = 0.0
+    zero_sd_probability: float = 0.0
+    zero_sd_zone: float = 300.0
+    zero_sd_frames: tuple[int, int] = (5, 25)
+
+    def __post_init__(self) -> None:
+        for name in ("position_noise", "velocity_noise", "zero_sd_zone"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"sensor {name} must be >= 0, got {getattr(self, name)!r}")
+        for name in ("dropout_probability", "zero_sd_probability"):
+            if not 0.0 <= getattr(self, name) <= 1.0:
+                raise ValueError(f"sensor {name} must be in [0, 1], got {getattr(self, name)!r}")
+        low, high = self.zero_sd_frames
+        if not 1 <= low <= high:
+            raise ValueError(f"sensor zero_sd_frames must be 1 <= min <= max, got {(low, high)}")
+
+    @property
+    def is_perfect(self) -> bool:
+        return (self.position_noise == 0 and self.velocity_noise == 0
+                and self.dropout_probability == 0 and self.zero_sd_probability == 0)
+
+
+class HighwaySensors:
+    """Turns the traffic state into sensor fusion rows, applying the configured faults."""
+
+    def __init__(self, config: SensorConfig, car_count: int, loop_length: float) -> None:
+        self.config = config
+        self.loop_length = loop_length
+        self._zero_frames_left = np.zeros(car_count, dtype=np.int64)
+
+    def reset(self) -> None:
+        self._zero_frames_left[:] = 0
+
+    def read(
+        self, ids: NDArray[np.int64], x: NDArray[np.float64], y: NDArray[np.float64],
+        vx: NDArray[np.float64], vy: NDArray[np.float64], s: NDArray[np.float64],
+        d: NDArray[np.float64], rng: np.random.Generator,
+    ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+        """One frame: rows ``[id, x, y, vx, vy, s, d]`` (n, 7) and which rows are present."""
+        fusion = np.stack([ids.astype(np.float64), x, y, vx, vy, s, d], axis=-1)
+        present = np.ones(len(ids), dtype=bool)
+        config = self.config
+        if config.is_perfect:
+            return fusion, present
+        n = len(ids)
+        if config.position_noise > 0:
+            fusion[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
+            fusion[:, 5] = np.mod(fusion[:, 5], self.loop_length)
+        if config.velocity_noise > 0:
+            fusion[:, [3, 4]] += rng.normal(0.0, config.velocity_noise, (n, 2))
+        if config.zero_sd_probability > 0:
+            in_zone = s > self.loop_length - config.zero_sd_zone
+            start = in_zone & (self._zero_frames_left == 0) & (
+                rng.random(n) < config.zero_sd_probability)
+            low, high = config.zero_sd_frames
+            self._zero_frames_left[start] = rng.integers(low, high + 1, int(start.sum()))
+            faulty = self._zero_frames_left > 0
+            fusion[faulty, 5:7] = 0.0
+            self._zero_frames_left[faulty] -= 1
+        if config.dropout_probability > 0:
+            present = rng.random(n) >= config.dropout_probability
+            fusion[~present] = 0.0
+        return fusion, present
+
+
+def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[np.float64]:
+    """Round to ``digits`` significant digits, like printing a 32-bit float as text."""
+    values = np.asarray(values, dtype=np.float64)
+    magnitude = np.abs(values)
+    exponent = np.floor(np.log10(np.where(magnitude > 0, magnitude, 1.0)))
+    scale = 10.0 ** (digits - 1 - exponent)
+    return np.round(values * scale) / scale
+
+
+def telemetry_message(
+    x: float, y: float, yaw: float, speed: float, s: float, d: float,
+    previous_path: NDArray[np.float64], end_path_s: float, end_path_d: float,
+    sensor_fusion: NDArray[np.float64],
+) -> dict[str, Any]:
+    """The flat telemetry object of the original (yaw in rad and speed in m/s go in; the
+    message carries degrees and mph). ``sensor_fusion`` holds the present rows only."""
+    ego = round_significant(np.array([x, y, np.degrees(yaw) % 360.0, speed * MPS_TO_MPH, s, d,
+                                      end_path_s, end_path_d]))
+    path = round_significant(previous_path)
+    fusion = round_significant(sensor_fusion)
+    rows = fusion.tolist()
+    for row in rows:
+        row[0] = int(row[0])
+    return {
+        "x": float(ego[0]), "y": float(ego[1]), "yaw": float(ego[2]), "speed": float(ego[3]),
+        "s": float(ego[4]), "d": float(ego[5]),
+        "previous_path_x": path[:, 0].tolist(), "previous_path_y": path[:, 1].tolist(),
+        "end_path_s": float(ego[6]), "end_path_d": float(ego[7]),
+        "sensor_fusion": rows,
+    }
