@@ -69,9 +69,9 @@ class LaneKeepingDriver:
         # The simulator consumed the head of our queue; keep what it still has.
         self._queue = self._queue[len(self._queue) - min(remaining, len(self._queue)):]
         if len(self._queue):
-            x, y, s, d, v, a = self._queue[-1]
+            _, _, s, d, v, a = self._queue[-1]
         else:
-            x, y, s, d, v, a = ego[0], ego[1], ego[2], ego[3], ego[5], 0.0
+            s, d, v, a = ego[2], ego[3], ego[5], 0.0
         new = p.horizon_points - len(self._queue)
         if new <= 0:
             return self._queue[:, :2].copy()

@@ -10,8 +10,6 @@ from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap, MapFormatError, load_highway_map, write_highway_map
 
-from .conftest import HIGHWAY_MAP_FILE
-
 
 def circle(radius: float, count: int, clockwise: bool = False) -> np.ndarray:
     angles = np.linspace(0, 2 * np.pi, count, endpoint=False)
@@ -102,7 +100,8 @@ def test_default_highway_has_the_original_character():
     # Deterministic: rebuilt from scratch gives the same points.
     from sdc_gym.road.builtin_highways import _DEFAULT_LAYOUT, _sample_layout
 
-    assert np.array_equal(_sample_layout(_DEFAULT_LAYOUT, 20.0), _sample_layout(_DEFAULT_LAYOUT, 20.0))
+    first, again = _sample_layout(_DEFAULT_LAYOUT, 20.0), _sample_layout(_DEFAULT_LAYOUT, 20.0)
+    assert np.array_equal(first, again)
 
 
 def test_map_selection_by_name_or_path_and_round_trip(tmp_path):
@@ -160,7 +159,7 @@ def test_coarse_helpers_match_the_template_semantics(original_highway):
     right = np.array([np.sin(heading), -np.cos(heading)])
     assert np.allclose([x, y], wp[10, :2] + 5.0 * along + 6.0 * right, atol=1e-6)
     # Round trip on the middle lane is coarse but close (this is why the env uses splines).
-    s2, d2 = coarse.get_frenet(x, y, heading)
+    _, d2 = coarse.get_frenet(x, y, heading)
     assert d2 == pytest.approx(6.0, abs=0.05)
     assert coarse.closest_waypoint(wp[42, 0] + 1.0, wp[42, 1]) == 42
     # Next waypoint: standing just past waypoint 42 facing along the road -> 43.

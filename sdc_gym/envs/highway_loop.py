@@ -90,14 +90,16 @@ class HighwayLoopEnv(gym.Env):
 
     ``Dict``, float32 arrays in SI units (the telemetry in ``info`` has the original's):
 
-    | key                   | shape                 | content                                  |
-    |-----------------------|-----------------------|------------------------------------------|
-    | `ego`                 | (6,)                  | x (m), y (m), s (m), d (m), yaw (rad), speed (m/s) |
-    | `previous_path`       | (path_points, 2)      | unconsumed path points, zero padded      |
-    | `previous_path_count` | Discrete(path_points+1) | number of valid rows of `previous_path` |
-    | `end_path`            | (2,)                  | s, d of the last unconsumed point (0, 0 if none) |
-    | `sensor_fusion`       | (car_count, 7)        | id, x, y, vx, vy, s, d per traffic car   |
-    | `sensor_fusion_mask`  | MultiBinary(car_count) | 1 where the row holds a sensed car      |
+    | key                   | shape           | content                                    |
+    |-----------------------|-----------------|--------------------------------------------|
+    | `ego`                 | (6,)            | x, y, s, d (m), yaw (rad), speed (m/s)     |
+    | `previous_path`       | (N, 2)          | unconsumed path points, zero padded        |
+    | `previous_path_count` | Discrete(N + 1) | valid rows of `previous_path`              |
+    | `end_path`            | (2,)            | s, d of the last unconsumed point, else 0  |
+    | `sensor_fusion`       | (C, 7)          | id, x, y, vx, vy, s, d per traffic car     |
+    | `sensor_fusion_mask`  | MultiBinary(C)  | 1 where the row holds a sensed car         |
+
+    N is ``path_points``, C the traffic ``car_count``.
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
     at the loop length); d is the offset to the right of the yellow centre line, so lane

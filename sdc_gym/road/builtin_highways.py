@@ -81,7 +81,7 @@ def _sample_layout(layout: tuple[_Segment, ...], spacing: float) -> np.ndarray:
     for segment in layout:
         if segment[0] == "straight":
             length = next(free) if segment[1] is None else segment[1]
-            count = max(int(round(length / spacing)), 1)
+            count = max(round(length / spacing), 1)
             direction = np.array([np.cos(heading), np.sin(heading)])
             for k in range(1, count + 1):
                 points.append(position + direction * length * k / count)
@@ -91,7 +91,7 @@ def _sample_layout(layout: tuple[_Segment, ...], spacing: float) -> np.ndarray:
             turn = np.radians(degrees)
             side = np.sign(turn)
             centre = position + radius * side * np.array([-np.sin(heading), np.cos(heading)])
-            count = max(int(round(radius * abs(turn) / spacing)), 2)
+            count = max(round(radius * abs(turn) / spacing), 2)
             for k in range(1, count + 1):
                 angle = heading + turn * k / count
                 points.append(centre + radius * side * np.array([np.sin(angle), -np.cos(angle)]))

@@ -128,7 +128,8 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
                 raise MapFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
             rows.append(values)
     if len(rows) < 4:
-        raise MapFormatError(f"{path}: a closed highway needs at least 4 waypoints, got {len(rows)}")
+        raise MapFormatError(
+            f"{path}: a closed highway needs at least 4 waypoints, got {len(rows)}")
     waypoints = np.asarray(rows, dtype=np.float64)
     if np.any(np.diff(waypoints[:, 2]) <= 0):
         bad = int(np.flatnonzero(np.diff(waypoints[:, 2]) <= 0)[0]) + 2

@@ -1,0 +1,29 @@
+# One-command set-up: every target creates .venv and installs the project on first use.
+# torch is pinned to the CPU build first (a plain `torch` would resolve a multi-GB CUDA one).
+VENV ?= .venv
+PYTHON ?= python3
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+
+.PHONY: evaluate test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet torch==2.13.0
+	$(PY) -m pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+evaluate: $(STAMP)  ## the main job: evaluate the reference agent(s) on the default env
+	$(PY) evaluate.py
+
+test: $(STAMP)  ## the test suite
+	$(PY) -m pytest
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check .
+
+bench: $(STAMP)  ## speed against highway-env, printed as ratios
+	$(PY) benchmarks/bench_highway.py
+
+clean:
+	rm -rf $(VENV) .pytest_cache .ruff_cache results
