@@ -15,6 +15,7 @@ point is ``v * dt`` further along the lane centre; the step in s is divided by
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -79,12 +80,13 @@ class LaneKeepingDriver:
         reference = self.road.reference
         rows = np.empty((new, 6))
         v_goal = p.target_speed_mph * MPH_TO_MPS
+        # The new points span under a metre: one curvature for all of them is exact enough.
+        curvature = float(reference.curvature(s))
         for i in range(new):
             a = self._next_acceleration(v, a, v_goal, lead_gap, lead_speed)
             v = max(v + a * PHYSICS_DT, 0.0)
-            d += float(np.clip(self._lane_d - d, -p.lateral_rate, p.lateral_rate))
-            stretch = 1.0 + float(reference.curvature(s)) * d
-            s = s + v * PHYSICS_DT / stretch
+            d += min(max(self._lane_d - d, -p.lateral_rate), p.lateral_rate)
+            s += v * PHYSICS_DT / (1.0 + curvature * d)
             lead_gap -= (v - lead_speed) * PHYSICS_DT
             rows[i, 2:] = s, d, v, a
         rows[:, :2] = reference.to_xy(rows[:, 2], rows[:, 3])
@@ -97,19 +99,17 @@ class LaneKeepingDriver:
         """Bumper-ish gap and speed of the nearest car ahead in our lane, at the end of the
         queued plan (cars are moved forward by the plan's remaining duration)."""
         p = self.params
-        fusion = observation["sensor_fusion"].astype(np.float64)
-        present = observation["sensor_fusion_mask"].astype(bool)
-        cars = fusion[present]
-        if len(cars) == 0:
-            return np.inf, 0.0
-        speed = np.hypot(cars[:, 3], cars[:, 4])
-        car_s = cars[:, 5] + speed * queued * PHYSICS_DT
-        gap = self.road.reference.s_difference(car_s, s_plan)
-        in_lane = (np.abs(cars[:, 6] - self._lane_d) < p.lane_half_width) & (gap > 0) & (
-            gap < p.sensing_range)
-        if not in_lane.any():
-            return np.inf, 0.0
-        nearest = int(np.argmin(np.where(in_lane, gap, np.inf)))
+        fusion = observation["sensor_fusion"]
+        speed = np.hypot(fusion[:, 3], fusion[:, 4])
+        half = 0.5 * self.road.length
+        # Modular gap along s from the end of our plan, cars moved on by the plan's duration.
+        gap = np.mod(fusion[:, 5] + speed * (queued * PHYSICS_DT) - s_plan + half,
+                     self.road.length) - half
+        ahead = ((observation["sensor_fusion_mask"] > 0) & (gap > 0) & (gap < p.sensing_range)
+                 & (np.abs(fusion[:, 6] - self._lane_d) < p.lane_half_width))
+        if not ahead.any():
+            return math.inf, 0.0
+        nearest = int(np.argmin(np.where(ahead, gap, np.inf)))
         return float(gap[nearest]), float(speed[nearest])
 
     def _next_acceleration(self, v: float, a: float, v_goal: float, gap: float,
@@ -117,11 +117,10 @@ class LaneKeepingDriver:
         """IDM target acceleration, clipped, reached at a bounded jerk."""
         p = self.params
         target = p.comfortable_acceleration * (1.0 - (v / v_goal) ** 4)
-        if np.isfinite(gap):
+        if gap != math.inf:
             desired = p.jam_gap + v * p.time_headway + v * (v - lead_speed) / (
-                2.0 * np.sqrt(p.comfortable_acceleration * p.comfortable_deceleration))
+                2.0 * math.sqrt(p.comfortable_acceleration * p.comfortable_deceleration))
             target -= p.comfortable_acceleration * (max(desired, 0.0) / max(gap, 0.1)) ** 2
-        target = float(np.clip(target, -p.max_acceleration, p.max_acceleration))
-        # Do not overshoot the cruise speed: ease off as v approaches it.
+        target = min(max(target, -p.max_acceleration), p.max_acceleration)
         step = p.max_jerk * PHYSICS_DT
-        return float(np.clip(target, a - step, a + step))
+        return min(max(target, a - step), a + step)

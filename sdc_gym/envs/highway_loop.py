@@ -26,10 +26,12 @@ EGO_LENGTH_M = 4.7
 EGO_WIDTH_M = 1.9
 
 
-def _dataclass_defaults(cls: type) -> dict[str, Any]:
+def _dataclass_defaults(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
     """A dataclass's fields and defaults as a plain config dict (nested dataclasses too)."""
     defaults: dict[str, Any] = {}
     for field in dataclasses.fields(cls):
+        if field.name in exclude:
+            continue
         if field.default is not dataclasses.MISSING:
             value = field.default
         elif field.default_factory is not dataclasses.MISSING:
@@ -151,7 +153,7 @@ class HighwayLoopEnv(gym.Env):
         "start_d": None,             # m; None = the map's start (middle lane)
         "ego_length": EGO_LENGTH_M,  # m
         "ego_width": EGO_WIDTH_M,    # m
-        "traffic": _dataclass_defaults(TrafficConfig),   # see sdc_gym.traffic.TrafficConfig
+        "traffic": _dataclass_defaults(TrafficConfig, exclude=("ego_length", "ego_width")),
         "sensors": _dataclass_defaults(SensorConfig),    # see SensorConfig
         "incident_rules": _dataclass_defaults(IncidentRules),  # see sdc_gym.metrics
         "reward_progress": 1.0,      # weight of normalised progress
@@ -185,6 +187,7 @@ class HighwayLoopEnv(gym.Env):
         self.road: HighwayMap = get_highway_map(cfg["map"])
         traffic_cfg = dict(cfg["traffic"])
         traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
+        traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])
         try:
             self.traffic_config = TrafficConfig(**{k: _to_tuple(v) for k, v in traffic_cfg.items()})
             self.sensor_config = SensorConfig(**{k: _to_tuple(v)
@@ -202,8 +205,7 @@ class HighwayLoopEnv(gym.Env):
         self.latency_steps = int(cfg["latency_steps"])
         self.ego_length = float(cfg["ego_length"])
         self.ego_width = float(cfg["ego_width"])
-        self.traffic = HighwayTraffic(self.road, self.traffic_config, dt=PHYSICS_DT,
-                                      ego_length=self.ego_length, ego_width=self.ego_width)
+        self.traffic = HighwayTraffic(self.road, self.traffic_config, dt=PHYSICS_DT)
         self.car_count = self.traffic_config.car_count
         self.sensors = HighwaySensors(self.sensor_config, self.car_count, self.road.length)
         self.metrics = DrivingMetrics(self.rules, self.road.length)
@@ -255,6 +257,7 @@ class HighwayLoopEnv(gym.Env):
         self.sensors.reset()
         self.metrics.reset(float(self._xy[0]), float(self._xy[1]), self._s, self._d, 0.0)
         self._collided = False
+        self._end_sd = (0.0, 0.0)
         self._done_reason = ""
         self._state_ready = True
         samples = self.traffic.samples_now()
@@ -269,8 +272,7 @@ class HighwayLoopEnv(gym.Env):
 
         frames = self.steps_per_action
         xy, yaw, speed = self._drive_ego(frames)
-        s, d = self.road.reference.to_frenet(
-            xy, s_guess=self._s + np.cumsum(speed) * PHYSICS_DT)
+        s, d = self._project(xy, speed)
         samples = self.traffic.advance(frames, s, d, speed)
         contact = first_contact(
             xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
@@ -331,6 +333,22 @@ class HighwayLoopEnv(gym.Env):
         last_real = int(differs[-1]) + 1 if len(differs) else 0
         return points[: last_real + 1]
 
+    def _project(self, xy: NDArray[np.float64],
+                 speed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Frenet s, d of the ego's frames; the path's end point rides in the same call."""
+        guess = self._s + np.cumsum(speed) * PHYSICS_DT
+        remaining = self._remaining_path()
+        if len(remaining) == 0:
+            self._end_sd = (0.0, 0.0)
+            return self.road.reference.to_frenet(xy, s_guess=guess)
+        end = remaining[-1]
+        # Warm start: the path's end lies about its straight-line distance ahead.
+        end_guess = guess[-1] + float(np.hypot(*(end - xy[-1])))
+        s, d = self.road.reference.to_frenet(np.vstack([xy, end]),
+                                             s_guess=np.append(guess, end_guess))
+        self._end_sd = (float(s[-1]), float(d[-1]))
+        return s[:-1], d[:-1]
+
     def _apply_path(self, path: NDArray[np.float64]) -> None:
         """Adopt a newly arrived path, dropping the points before the one nearest the car."""
         if len(path) == 0:
@@ -380,21 +398,12 @@ class HighwayLoopEnv(gym.Env):
     def _remaining_path(self) -> NDArray[np.float64]:
         return self._path[self._path_start:]
 
-    def _end_path(self, remaining: NDArray[np.float64]) -> tuple[float, float]:
-        if len(remaining) == 0:
-            return 0.0, 0.0
-        # Warm start: the path's end lies about its straight-line distance ahead.
-        guess = self._s + float(np.hypot(*(remaining[-1] - self._xy)))
-        s, d = self.road.reference.to_frenet(remaining[-1], s_guess=guess)
-        return float(s), float(d)
-
     def _observation(self) -> dict[str, Any]:
         remaining = self._remaining_path()
         count = len(remaining)
         previous = np.zeros((self.path_points, 2), dtype=np.float32)
         previous[:count] = remaining
-        end_s, end_d = self._end_path(remaining)
-        self._end_sd = (end_s, end_d)
+        end_s, end_d = self._end_sd
         return {
             "ego": np.array([self._xy[0], self._xy[1], self._s, self._d, self._yaw,
                              self._speed], dtype=np.float32),

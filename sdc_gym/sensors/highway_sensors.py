@@ -121,17 +121,20 @@ def telemetry_message(
 ) -> dict[str, Any]:
     """The flat telemetry object of the original (yaw in rad and speed in m/s go in; the
     message carries degrees and mph). ``sensor_fusion`` holds the present rows only."""
-    ego = round_significant(np.array([x, y, np.degrees(yaw) % 360.0, speed * MPS_TO_MPH, s, d,
-                                      end_path_s, end_path_d]))
-    path = round_significant(previous_path)
-    fusion = round_significant(sensor_fusion)
-    rows = fusion.tolist()
+    scalars = np.array([x, y, np.degrees(yaw) % 360.0, speed * MPS_TO_MPH, s, d, end_path_s,
+                        end_path_d])
+    # One rounding pass over every number of the message (it runs every env step).
+    flat = round_significant(np.concatenate([scalars, previous_path.T.ravel(),
+                                             sensor_fusion.ravel()]))
+    count = len(previous_path)
+    ego = flat[:8].tolist()
+    rows = flat[8 + 2 * count:].reshape(-1, 7).tolist()
     for row in rows:
         row[0] = int(row[0])
     return {
-        "x": float(ego[0]), "y": float(ego[1]), "yaw": float(ego[2]), "speed": float(ego[3]),
-        "s": float(ego[4]), "d": float(ego[5]),
-        "previous_path_x": path[:, 0].tolist(), "previous_path_y": path[:, 1].tolist(),
-        "end_path_s": float(ego[6]), "end_path_d": float(ego[7]),
+        "x": ego[0], "y": ego[1], "yaw": ego[2], "speed": ego[3], "s": ego[4], "d": ego[5],
+        "previous_path_x": flat[8:8 + count].tolist(),
+        "previous_path_y": flat[8 + count:8 + 2 * count].tolist(),
+        "end_path_s": ego[6], "end_path_d": ego[7],
         "sensor_fusion": rows,
     }
