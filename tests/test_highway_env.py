@@ -138,10 +138,14 @@ def test_running_out_of_path_stops_dead_and_is_an_acceleration_incident():
 
 
 def test_collision_is_seen_and_terminates():
-    env = make(latency_steps=0, traffic={"car_count": 3})
+    env = make(latency_steps=0)
     obs, _ = env.reset(seed=1)
-    car = obs["sensor_fusion"][0]
-    # Drive exactly onto where car 0 will be (a teleport, but contact must be seen).
+    reference = env.unwrapped.road.reference
+    gaps = reference.s_difference(obs["sensor_fusion"][:, 5], obs["ego"][2])
+    assert (gaps > 0).any()
+    car = obs["sensor_fusion"][int(np.argmax(np.where(gaps > 0, -gaps, -np.inf)))]
+    # Jump onto the nearest car ahead and ride with it (a teleport, but the contact must
+    # be seen; points ahead of the ego are all kept by the nearest-point rule).
     times = 0.02 * np.arange(1, 11)
     path = np.column_stack([car[1] + car[3] * times, car[2] + car[4] * times])
     obs, reward, terminated, truncated, info = env.step(path)
@@ -149,7 +153,13 @@ def test_collision_is_seen_and_terminates():
     assert info["incidents_collision"] == 1
     assert info["termination_reason"] == "collision"
     assert info["summary"]["incidents"]["collision"] == 1
-    assert reward < -5
+    # Reward = progress / (speed limit * step duration) + the penalty of each new incident.
+    penalties = {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0, "speed": -1.0,
+                 "lane": -1.0, "off_road": -1.0}
+    assert "collision" in info["new_incidents"]
+    expected = info["progress"] / (22.352 * 0.06) + sum(
+        penalties[kind] for kind in info["new_incidents"])
+    assert reward == pytest.approx(expected, rel=1e-9)
 
 
 def test_telemetry_matches_the_original_fields_and_units():
@@ -159,7 +169,8 @@ def test_telemetry_matches_the_original_fields_and_units():
     telemetry = info["telemetry"]
     assert list(telemetry) == ["x", "y", "yaw", "speed", "s", "d", "previous_path_x",
                                "previous_path_y", "end_path_s", "end_path_d", "sensor_fusion"]
-    assert telemetry["speed"] == pytest.approx(20.0 * MPS_TO_MPH, rel=1e-6)
+    assert telemetry["speed"] == pytest.approx(obs["ego"][5] * MPS_TO_MPH, rel=1e-6)
+    assert telemetry["speed"] == pytest.approx(20.0 * MPS_TO_MPH, rel=0.01)
     assert telemetry["yaw"] == pytest.approx(np.degrees(obs["ego"][4]) % 360, abs=1e-3)
     assert len(telemetry["previous_path_x"]) == obs["previous_path_count"]
     assert len(telemetry["sensor_fusion"]) == 12
@@ -203,11 +214,12 @@ def test_original_map_from_a_path_starts_at_the_original_state():
     env = make(map=str(HIGHWAY_MAP_FILE))
     obs, _ = env.reset(seed=0)
     assert env.unwrapped.road.length == pytest.approx(6945.554, rel=1e-3)
-    assert obs["ego"][2] == pytest.approx(124.8336, abs=1e-3)
-    assert obs["ego"][3] == pytest.approx(6.164833, abs=1e-4)
-    # The original's start point is x = 909.48, y = 1128.67.
-    assert obs["ego"][0] == pytest.approx(909.48, abs=0.1)
-    assert obs["ego"][1] == pytest.approx(1128.67, abs=0.1)
+    # The original's start point is x = 909.48, y = 1128.67 (coarse s, d = 124.8336,
+    # 6.164833); on the exact reference line that point is s = 124.935, d = 6.098.
+    assert obs["ego"][0] == pytest.approx(909.48, abs=0.01)
+    assert obs["ego"][1] == pytest.approx(1128.67, abs=0.01)
+    assert obs["ego"][2] == pytest.approx(124.935, abs=1e-3)
+    assert obs["ego"][3] == pytest.approx(6.098, abs=1e-3)
 
 
 def test_lane_keeping_driver_completes_a_lap_without_incident():

@@ -99,7 +99,7 @@ class HighwayLoopEnv(gym.Env):
     | `previous_path_count` | Discrete(N + 1) | valid rows of `previous_path`              |
     | `end_path`            | (2,)            | s, d of the last unconsumed point, else 0  |
     | `sensor_fusion`       | (C, 7)          | id, x, y, vx, vy, s, d per traffic car     |
-    | `sensor_fusion_mask`  | MultiBinary(C)  | 1 where the row holds a sensed car         |
+    | `sensor_fusion_mask`  | (C,) int8 0/1   | 1 where the row holds a sensed car         |
 
     N is ``path_points``, C the traffic ``car_count``.
 
@@ -227,7 +227,8 @@ class HighwayLoopEnv(gym.Env):
             "previous_path_count": spaces.Discrete(n + 1),
             "end_path": spaces.Box(-big, big, shape=(2,), dtype=np.float32),
             "sensor_fusion": spaces.Box(-big, big, shape=(self.car_count, 7), dtype=np.float32),
-            "sensor_fusion_mask": spaces.MultiBinary(self.car_count),
+            # A 0/1 Box rather than MultiBinary, which cannot have size 0 (no traffic).
+            "sensor_fusion_mask": spaces.Box(0, 1, shape=(self.car_count,), dtype=np.int8),
         })
         self._incident_penalty = {kind: float(value)
                                   for kind, value in cfg["reward_incident"].items()}

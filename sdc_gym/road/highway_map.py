@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.geometry.coarse_frenet import CoarseFrenet
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 
 # The original simulator's start state (middle lane, at rest, facing +x).
@@ -142,12 +143,19 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
         reference = ReferenceLine(waypoints[:, :2])
     except ReferenceLineError as error:
         raise MapFormatError(f"{path}: {error}") from None
+    # The original places the car where the template's coarse getXY puts (s, d) =
+    # (124.8336, 6.164833): x = 909.48, y = 1128.67 on the original map. Start at that
+    # point, expressed in the exact Frenet frame (s = 124.935, d = 6.098 there).
+    start_xy = CoarseFrenet.from_waypoints(waypoints).get_xy(ORIGINAL_START_S, ORIGINAL_START_D)
+    start_s, start_d = reference.to_frenet(np.asarray(start_xy))
     return HighwayMap(
         name=str(path),
         waypoints=waypoints,
         reference=reference,
         lane_count=lane_count,
         lane_width=lane_width,
+        start_s=float(start_s),
+        start_d=float(start_d),
     )
 
 

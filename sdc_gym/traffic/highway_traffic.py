@@ -1,0 +1,942 @@
+"""Highway traffic: every traffic car at once, in numpy arrays, in the road's Frenet frame.
+
+What the original simulator does (``shared/spec/highway_sim.md``, "Traffic in the
+original") and how this model does it:
+
+* **Car following** by the Intelligent Driver Model (:mod:`sdc_gym.traffic.idm`), with
+  per-type acceleration limits (:mod:`sdc_gym.traffic.vehicle_types`).
+* **Speeds like the original**: a car spawned ahead of the ego car wants 40 to 50 mph, one
+  spawned behind it 50 to 60 mph (uniform), so slow cars wait ahead and fast cars come up
+  from behind.
+* **Recycling**: a car more than ``spawn_range`` (200 m, along s, modular) from the ego is
+  respawned on the *other* side of the ego (it fell behind: ahead, slow; it ran away:
+  behind, fast), ``respawn_distance`` ahead of or behind it, a few per decision.
+* **Lane changes only into a clear gap**: the target lane must be free within
+  ``+-lane_change_clearance`` (20 m) in s for ``lane_change_sustain`` seconds, then the car
+  moves over in ``lane_change_duration`` seconds on a minimum-jerk (quintic) profile.
+* **Lateral wander**: a slow sine of ``lateral_wander`` metres around the lane centre.
+* **Rogue mode** (off by default): hard-braking episodes and cut-ins with small gaps.
+
+The ego car is part of the world: a traffic car follows it when it is ahead in a lane the
+car occupies, and it counts for lane-change clearance and spawn gaps. It never yields to
+traffic: whatever the ego does, collisions with it are its own (detected elsewhere).
+
+Decision instants and sub-steps
+-------------------------------
+The expensive work (leader search, IDM, lane-change decisions, recycling, rogue events)
+runs only at *decision instants*, every ``decision_period`` physics steps (5 x 0.02 s =
+0.1 s; highway-env decides at 15 Hz). In between, each car's acceleration is held (a
+braking car stops at zero instead of reversing) and its lateral position follows its
+closed-form profile (lane-change quintic plus wander sine), so the states at all
+sub-steps of an :meth:`HighwayTraffic.advance` come out of a handful of vectorized
+expressions over ``(steps, n)`` arrays. A decision uses the ego's latest state before it.
+
+Frenet kinematics: a car at speed ``v`` along its lane at offset ``d`` advances
+``ds/dt = v / (1 + kappa(s) d)`` (``kappa`` signed, positive turning left, ``d`` to the
+right: on a left bend the right lanes are longer). Its world velocity is ``v`` along the
+road tangent plus ``d_dot`` along the right normal, its heading the direction of that
+velocity (a car slower than 1 m/s keeps pointing along its lane). ``kappa`` is taken at
+each decision instant. Road geometry comes from tables of the reference line (point,
+tangent, curvature every 0.25 m, linearly interpolated: a handful of numpy calls for a
+whole ``(steps, n)`` array; positions within 0.1 mm of ``reference.to_xy``).
+
+Lane occupancy and the leader search
+------------------------------------
+A car *occupies* its lane, and while changing lanes both its origin and its target lane.
+Its leader is the nearest object ahead (smallest modular gap in s) among the objects that
+occupy any lane it occupies; clearance checks test every lane the same way. So a changing
+car is followed by the cars of both lanes, follows the leaders of both lanes, and is seen
+by any car that wants to enter either lane. The ego occupies every lane its footprint
+touches. Gaps are bumper to bumper and along the follower's lane: ``delta_s * (1 + kappa
+* d) - (L_follower + L_leader) / 2``. The search is an O(n^2) masked argmin over (lane,
+car, object) arrays (cheaper than sorting for the n <= 100 this is for).
+
+Lane-change decision (a car not already changing, moving at least
+``lane_change_min_speed``): an adjacent lane qualifies if no object occupying it is within
+``+-lane_change_clearance`` in s (centre to centre), if the car's IDM acceleration there
+(behind that lane's leader) beats its current one by ``lane_change_min_gain`` (MOBIL's
+incentive, politeness 0), and if neither the car nor the new follower (a car or the ego)
+would have to brake harder than ``lane_change_max_braking_imposed`` (MOBIL's safety
+criterion; ``inf`` leaves the bare +-20 m rule). The best such lane must stay the wish at
+every decision for ``lane_change_sustain`` seconds. At most one car starts into a given
+lane per decision (the lowest slot index): two cars merging into one lane from both sides
+at the same instant would not have seen each other in their checks; the other one retries
+0.1 s later and then does see the first.
+
+Respawn rule: random candidate spots (lane, s) ``respawn_distance`` from the ego, on the
+side opposite to where the car left (the other side if that fails); a spot is taken only
+if the bumper gaps to the nearest objects ahead and behind in that lane are at least
+``spawn_min_gap`` and the follower (a car or the ego) would not find the newcomer inside
+its IDM desired gap (so it brakes by at most its ``a_max``); the newcomer starts at its
+desired speed or, if its own leader is close, at the largest speed whose IDM desired gap
+fits (:func:`max_speed_for_gap`). A recycled car gets a new id. When no spot fits (dense
+traffic: e.g. 50 cars in +-200 m jam at about 15 m/s), the car drives on where it is and
+tries again later. :meth:`HighwayTraffic.reset` lays the cars out uniformly over the free
+room (``spawn_min_gap`` from each other and from the ego) within a spread set by
+``density``, then slows each car, front to back, to a speed whose IDM desired gap fits
+behind its leader (the ego included).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.traffic.idm import IDMParameters, desired_gap, idm_core, max_speed_for_gap
+from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+MPH = 0.44704  # m/s per mph
+_NEVER = -(2**40)  # a step index long past: "no lane change started"
+_IDLE = 2**62  # lane-change end step of a car that is not changing lanes
+_GEOMETRY_STEP = 0.25  # m, spacing of the geometry look-up tables
+_SPAWN_CANDIDATES = 24  # random spots tried per side when placing one car
+_RESPAWN_RETRY_STEPS = 100  # a car that found no room to respawn retries after this
+_RESPAWN_PAUSE_STEPS = 50  # and after any such failure nobody tries for this long
+
+
+@dataclass(frozen=True)
+class TrafficConfig:
+    """Traffic settings; the defaults reproduce the original simulator's traffic.
+
+    Attributes:
+        car_count: number of traffic cars (constant: cars are recycled, never removed).
+        density: compactness of the initial placement. Cars are spread over
+            ``+-0.75 * spawn_range / density`` metres of s around the ego (1.0: +-150 m;
+            2.0: +-75 m, a busy start; <= 0.75: the whole +-spawn_range), the spread
+            widening by itself if the cars do not fit.
+        spawn_range: m along s (modular); a car further from the ego is recycled. Capped at
+            0.45 of the loop length on short loops.
+        respawn_distance: (min, max) m along s from the ego where recycled cars reappear;
+            max is capped at ``spawn_range - 10``.
+        respawn_per_decision: at most this many cars are recycled per decision instant
+            (the farthest first): "a few at a time".
+        spawn_min_gap: m, smallest bumper gap to the neighbours ahead and behind in the
+            lane at (re)spawn.
+        lane_change_clearance: m, +- in s (centre to centre) on the target lane that must
+            be free of any car (or the ego) occupying it.
+        lane_change_sustain: s the clearance (and the wish) must hold before starting.
+        lane_change_duration: s for the lateral move (quintic minimum-jerk profile).
+        lane_change_min_gain: m/s^2, IDM acceleration the target lane must offer over the
+            current one (MOBIL's LANE_CHANGE_MIN_ACC_GAIN).
+        lane_change_max_braking_imposed: m/s^2, largest braking the change may require of
+            the new follower or of the car itself (MOBIL's safety criterion); ``inf``
+            leaves only the clearance rule.
+        lane_change_min_speed: m/s, slower cars do not start lane changes.
+        lateral_wander: m, amplitude of the lateral sine around the lane centre.
+        wander_period: (min, max) s, period of that sine (uniform per car).
+        rogue: enable rogue behaviour (stress tests): sudden hard braking for no reason,
+            and cut-ins into gaps the normal rule refuses, with a short lateral move.
+        rogue_rate: events per car per minute when rogue (half braking, half cut-in).
+        rogue_brake_decel: m/s^2, braking of a rogue episode. The default equals
+            ``idm.max_braking``, the hardest traffic brakes, so traffic behind (reacting
+            one decision later) survives it; above that, followers may run into it.
+        rogue_brake_duration: s of one hard-braking episode.
+        rogue_cut_in_gap: m, bumper gap a rogue cut-in leaves ahead and behind, on top of
+            what braking at ``idm.max_braking`` one decision late needs to match speeds
+            (so a cut-in in front of traffic, or of an ego that brakes, is survivable).
+        rogue_cut_in_duration: s for a rogue cut-in's lateral move.
+        rogue_cut_in_window: s a rogue car keeps looking for a gap to cut into.
+        decision_period: physics steps between decision instants (>= 1).
+        speed_ahead_mph: (min, max) desired speed of cars spawned ahead of the ego.
+        speed_behind_mph: (min, max) desired speed of cars spawned behind the ego.
+        vehicle_mix: spawn weights per :data:`VEHICLE_TYPES` entry; None = their defaults.
+        idm: car-following parameters (``a_max`` and ``b`` are overridden per vehicle type).
+        ego_length: m, the ego car's length (for gaps to it).
+        ego_width: m, the ego car's width (for the lanes it occupies).
+    """
+
+    car_count: int = 12
+    density: float = 1.0
+    spawn_range: float = 200.0
+    respawn_distance: tuple[float, float] = (60.0, 180.0)
+    respawn_per_decision: int = 2
+    spawn_min_gap: float = 8.0
+    lane_change_clearance: float = 20.0
+    lane_change_sustain: float = 1.0
+    lane_change_duration: float = 3.0
+    lane_change_min_gain: float = 0.2
+    lane_change_max_braking_imposed: float = 2.0
+    lane_change_min_speed: float = 5.0
+    lateral_wander: float = 0.15
+    wander_period: tuple[float, float] = (6.0, 14.0)
+    rogue: bool = False
+    rogue_rate: float = 1.0
+    rogue_brake_decel: float = 6.0
+    rogue_brake_duration: float = 1.5
+    rogue_cut_in_gap: float = 4.0
+    rogue_cut_in_duration: float = 1.0
+    rogue_cut_in_window: float = 5.0
+    decision_period: int = 5
+    speed_ahead_mph: tuple[float, float] = (40.0, 50.0)
+    speed_behind_mph: tuple[float, float] = (50.0, 60.0)
+    vehicle_mix: tuple[float, ...] | None = None
+    idm: IDMParameters = field(default_factory=IDMParameters)
+    ego_length: float = 4.7
+    ego_width: float = 1.9
+
+    def __post_init__(self) -> None:
+        checks = (
+            (self.car_count >= 0, "car_count must be >= 0"),
+            (self.density > 0, "density must be > 0"),
+            (self.spawn_range > 20, "spawn_range must be > 20 m"),
+            (0 <= self.respawn_distance[0] < self.respawn_distance[1],
+             "respawn_distance must be (min, max) with 0 <= min < max"),
+            (self.respawn_per_decision >= 1, "respawn_per_decision must be >= 1"),
+            (self.decision_period >= 1, "decision_period must be >= 1"),
+            (self.lane_change_duration > 0, "lane_change_duration must be > 0"),
+            (self.rogue_cut_in_duration > 0, "rogue_cut_in_duration must be > 0"),
+            (self.lane_change_sustain >= 0, "lane_change_sustain must be >= 0"),
+            (0 < self.wander_period[0] <= self.wander_period[1], "wander_period: 0 < min <= max"),
+            (self.speed_ahead_mph[0] <= self.speed_ahead_mph[1], "speed_ahead_mph: min <= max"),
+            (self.speed_behind_mph[0] <= self.speed_behind_mph[1], "speed_behind_mph: min <= max"),
+        )
+        for ok, message in checks:
+            if not ok:
+                raise ValueError(f"TrafficConfig: {message}")
+        spawn_probabilities(self.vehicle_mix)  # validates the mix
+
+
+@dataclass(frozen=True)
+class TrafficSamples:
+    """Traffic state at each physics sub-step of one :meth:`HighwayTraffic.advance` call.
+
+    Every array is ``(steps, n)``; row ``k`` is the state after sub-step ``k + 1``.
+    ``s`` is wrapped to ``[0, road length)``, ``d`` in metres right of the reference line,
+    ``speed`` the speed along the lane (m/s), ``x, y`` map metres, ``heading`` radians
+    counter-clockwise from +x (the direction of motion), ``vx, vy`` the world velocity
+    (m/s, including the lateral motion).
+    """
+
+    s: FloatArray
+    d: FloatArray
+    speed: FloatArray
+    x: FloatArray
+    y: FloatArray
+    heading: FloatArray
+    vx: FloatArray
+    vy: FloatArray
+
+
+def _stopping_gap(v_back: FloatArray, v_front: FloatArray, cfg: TrafficConfig,
+                  delay: float) -> FloatArray:
+    """Gap (m) a car at ``v_back`` eats up behind one at ``v_front`` (constant speed) before
+    it has matched its speed, braking at ``max_braking`` after ``delay`` seconds."""
+    closing = np.maximum(v_back - v_front, 0.0)
+    return closing * delay + closing * closing / (2.0 * cfg.idm.max_braking)
+
+
+class HighwayTraffic:
+    """Vectorized traffic on a :class:`HighwayMap`; see the module docstring.
+
+    Args:
+        road: the highway (its reference line, lane count and width).
+        config: traffic settings (``None``: the defaults).
+        dt: s, the physics step.
+
+    After :meth:`reset` or :meth:`advance`, these ``(n,)`` arrays hold the current state
+    (treat them as read-only; ``advance`` replaces rather than mutates the kinematic ones):
+    ``ids`` (a respawned car gets a new id), ``s``, ``d``, ``speed``, ``lane`` (the lane
+    holding the car's centre), ``target_lane`` (the destination of a lane change, else the
+    car's lane), ``length``, ``width``, ``type_index``, ``x``, ``y``, ``heading``, ``vx``,
+    ``vy``, and ``desired_speed`` (m/s). ``rogue_brake_count`` and ``rogue_cut_in_count``
+    count rogue events since the reset.
+    """
+
+    def __init__(self, road: HighwayMap, config: TrafficConfig | None = None,
+                 dt: float = 0.02) -> None:
+        self.road = road
+        self.config = config = config if config is not None else TrafficConfig()
+        self.dt = float(dt)
+        self._ref = road.reference
+        self._loop = float(road.length)
+        self._half_loop = 0.5 * self._loop
+        self._lanes = int(road.lane_count)
+        self._lane_width = float(road.lane_width)
+        self._range = min(config.spawn_range, 0.45 * self._loop)
+        self._respawn_lo = min(config.respawn_distance[0], 0.5 * self._range)
+        self._respawn_hi = min(config.respawn_distance[1], self._range - 10.0)
+        self._decision_dt = config.decision_period * self.dt
+        self._type_p = spawn_probabilities(config.vehicle_mix)
+        self._lane_ids = np.arange(self._lanes)
+        self._adjacent = np.abs(self._lane_ids[:, None] - self._lane_ids[None, :]) == 1
+        self._rogue_p = config.rogue_rate / 60.0 * self._decision_dt if config.rogue else 0.0
+        self._brake_steps = round(config.rogue_brake_duration / self.dt)
+        self._cut_in_window_steps = round(config.rogue_cut_in_window / self.dt)
+        self._sustain_decisions = math.ceil(config.lane_change_sustain / self._decision_dt - 1e-9)
+        self._ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
+        # Geometry tables on a uniform s grid, interpolated linearly: a lookup is a
+        # handful of numpy calls, against ~30 for a spline evaluation, and the error is
+        # far below anything that matters (point: h^2 * kappa / 8 < 0.1 mm for radii
+        # over 50 m; see _GEOMETRY_STEP). Rows: x, y, tangent x, tangent y.
+        count = max(math.ceil(self._loop / _GEOMETRY_STEP), 16)
+        self._grid_count = count
+        self._grid_scale = count / self._loop  # grid cells per metre
+        grid = np.arange(count + 1) * (self._loop / count)
+        point, tangent = self._ref.frame(grid[:-1])
+        table = np.hstack([point, tangent])
+        table = np.vstack([table, table[:1]])
+        self._geo = table[:-1].copy()
+        self._geo_step = np.diff(table, axis=0)
+        kappa = self._ref.curvature(grid[:-1])
+        self._kappa_grid = grid
+        self._kappa_table = np.append(kappa, kappa[0])
+        self._times: dict[int, tuple[IntArray, FloatArray]] = {}
+        self._ego_rows: dict[tuple[int, int], tuple[NDArray[np.bool_], FloatArray]] = {}
+        # Gaps at reset are laid out in s; divide by this to hold them in lane metres too.
+        self._min_scale = max(1.0 - float(np.abs(kappa).max()) * self.road.road_width, 0.5)
+        self._rng: np.random.Generator | None = None
+        self._allocate(config.car_count)
+
+    # ------------------------------------------------------------------ state
+    def _allocate(self, n: int) -> None:
+        cfg = self.config
+        zeros = np.zeros(n)
+        self.n = n
+        self.ids: IntArray = np.arange(n, dtype=np.int64)
+        self.type_index: IntArray = np.zeros(n, dtype=np.int64)
+        self.length: FloatArray = zeros.copy()
+        self.width: FloatArray = zeros.copy()
+        self.s: FloatArray = zeros.copy()
+        self.d: FloatArray = zeros.copy()
+        self.speed: FloatArray = zeros.copy()
+        self.desired_speed: FloatArray = zeros.copy()
+        self.lane: IntArray = np.zeros(n, dtype=np.int64)
+        self.target_lane: IntArray = np.zeros(n, dtype=np.int64)
+        self.x: FloatArray = zeros.copy()
+        self.y: FloatArray = zeros.copy()
+        self.heading: FloatArray = zeros.copy()
+        self.vx: FloatArray = zeros.copy()
+        self.vy: FloatArray = zeros.copy()
+        self.rogue_brake_count = 0
+        self.rogue_cut_in_count = 0
+        # Per-car IDM constants, with the ego appended (index n) for the leader search.
+        self._half_len_all = np.append(zeros, 0.5 * cfg.ego_length)
+        self._a_all = np.append(zeros, cfg.idm.a_max)
+        self._tsab_all = np.append(zeros, self._ego_tsab)  # 2 sqrt(a b)
+        self._v0_all = np.zeros(n + 1)
+        self._s_all = np.zeros(n + 1)  # scratch, filled at each decision
+        self._d_all = np.zeros(n + 1)
+        self._v_all = np.zeros(n + 1)
+        self._occ_all = np.zeros((n + 1, self._lanes), dtype=bool)
+        # Per lane, 0 for the objects occupying it and inf for the others; shaped to
+        # broadcast against (car, object) matrices.
+        self._penalty = np.zeros((self._lanes, 1, n + 1))
+        self._lane_col = self._lane_ids[:, None]
+        self._occ_dirty = True  # lanes changed since the occupancy was last built
+        self._center = np.zeros(n)  # d of the centre of each car's origin lane
+        self._respawn_wait = np.zeros(n, dtype=np.int64)  # step before which not to retry
+        self._gaps = np.zeros((self._lanes + 1, n))  # IDM inputs: every lane, then own
+        self._leader_v = np.zeros((self._lanes + 1, n))
+        # Dynamics and decisions.
+        self._acc = zeros.copy()  # held between decisions
+        self._kappa = zeros.copy()  # curvature at the last decision (for ds/dt)
+        self._origin = np.zeros(n, dtype=np.int64)  # lane a change started from
+        self._lc_start = np.full(n, _NEVER, dtype=np.int64)  # step it started
+        self._lc_end = np.full(n, _IDLE, dtype=np.int64)  # step it ends (_IDLE: none)
+        self._lc_duration = np.full(n, cfg.lane_change_duration)
+        self._changing_any = False
+        self._pending = np.full(n, -1, dtype=np.int64)  # lane wished at the last decision
+        self._held = np.zeros(n, dtype=np.int64)  # decisions the wish has held since
+        self._wander_omega = zeros.copy()
+        self._wander_phase = zeros.copy()
+        self._wander_speed = zeros.copy()  # amplitude * omega: peak lateral speed
+        self._brake_until = np.zeros(n, dtype=np.int64)
+        self._cut_in_until = np.zeros(n, dtype=np.int64)
+        self._rows = np.arange(n)
+        self._tri = np.tri(n, k=-1, dtype=bool)
+        self._step = 0
+        self._respawn_blocked_until = 0  # after a failed respawn, pause all attempts
+        self._next_id = n
+        self._ego = (0.0, 0.0, 0.0)  # s, d, speed at the latest sample
+
+    def _ego_occupancy(self, ego_d: float) -> tuple[NDArray[np.bool_], FloatArray]:
+        """Lanes touched by the ego's footprint (its width, across d), and their penalty."""
+        half = 0.5 * self.config.ego_width
+        key = (math.floor((ego_d - half) / self._lane_width),
+               math.floor((ego_d + half) / self._lane_width))
+        rows = self._ego_rows.get(key)
+        if rows is None:
+            occ = (self._lane_ids >= key[0]) & (self._lane_ids <= key[1])
+            rows = self._ego_rows.setdefault(key, (occ, np.where(occ, 0.0, np.inf)))
+        return rows
+
+    def _occupancy(self) -> NDArray[np.bool_]:
+        """(n, lanes): the lanes each car occupies (origin and target while changing)."""
+        lanes = self._lane_ids[None, :]
+        return (lanes == self._origin[:, None]) | (lanes == self.target_lane[:, None])
+
+    def _new_car(self, i: int, type_index: int, s: float, lane: int, speed: float,
+                 desired: float, rng: np.random.Generator) -> None:
+        """Write a fresh car into slot ``i`` (arrays must be owned, not sample views)."""
+        cfg = self.config
+        vtype = VEHICLE_TYPES[type_index]
+        self.type_index[i] = type_index
+        self.length[i] = vtype.length
+        self.width[i] = vtype.width
+        self._half_len_all[i] = 0.5 * vtype.length
+        self._a_all[i] = vtype.comfort_accel
+        self._tsab_all[i] = 2.0 * math.sqrt(vtype.comfort_accel * vtype.comfort_decel)
+        self.s[i] = s
+        self.speed[i] = speed
+        self.desired_speed[i] = self._v0_all[i] = desired
+        self._origin[i] = self.target_lane[i] = lane
+        self._occ_dirty = True
+        self._respawn_wait[i] = 0
+        self._lc_start[i] = _NEVER
+        self._lc_end[i] = _IDLE
+        self._pending[i] = -1
+        self._held[i] = 0
+        self._acc[i] = 0.0
+        self._brake_until[i] = self._cut_in_until[i] = 0
+        self._wander_omega[i] = 2.0 * np.pi / rng.uniform(*cfg.wander_period)
+        self._wander_phase[i] = rng.uniform(0.0, 2.0 * np.pi)
+        self._wander_speed[i] = cfg.lateral_wander * self._wander_omega[i]
+        self.d[i] = (lane + 0.5) * self._lane_width + cfg.lateral_wander * math.sin(
+            self._wander_omega[i] * self._step * self.dt + self._wander_phase[i]
+        )
+
+    def _own_arrays(self) -> None:
+        """Copy the per-car arrays a respawn writes into (they may be views of samples)."""
+        for name in ("ids", "s", "d", "speed", "type_index", "length", "width",
+                     "desired_speed", "target_lane"):
+            setattr(self, name, getattr(self, name).copy())
+
+    # ------------------------------------------------------------------ placement
+    def _find_spot(self, placed: NDArray[np.bool_], type_index: int, offsets: FloatArray,
+                   lanes: IntArray, desired: FloatArray) -> tuple[int, float]:
+        """First candidate (ego_s + offset, lane) satisfying the respawn rule, and its speed.
+
+        ``placed`` masks the cars that count; the ego always counts. Returns (-1, 0.0)
+        when no candidate fits.
+        """
+        cfg = self.config
+        ego_s, ego_d, ego_speed = self._ego
+        vtype = VEHICLE_TYPES[type_index]
+        idx = np.append(np.flatnonzero(placed), self.n)  # the ego is object n
+        self._fill_objects(ego_s, ego_d, ego_speed)
+        s_o = self._s_all[idx]
+        len_o = 2.0 * self._half_len_all[idx]
+        v_o = self._v_all[idx]
+        occ_o = self._occ_all[idx]
+        s_c = self._ref.wrap_s(ego_s + offsets)
+        scale_c = 1.0 + self._curvature(s_c) * ((lanes + 0.5) * self._lane_width)
+        scale_o = 1.0 + self._curvature(s_o) * self._d_all[idx]
+
+        inlane = occ_o[:, lanes].T  # (candidates, objects)
+        delta = self._ref.s_difference(s_o[None, :], s_c[:, None])
+        ahead = np.where(inlane & (delta >= 0.0), delta, np.inf)
+        behind = np.where(inlane & (delta < 0.0), -delta, np.inf)
+        rows = np.arange(len(s_c))
+        li = ahead.argmin(axis=1)
+        fi = behind.argmin(axis=1)
+        gap_lead = ahead[rows, li] * scale_c - 0.5 * (vtype.length + len_o[li])
+        gap_follow = behind[rows, fi] * scale_o[fi] - 0.5 * (vtype.length + len_o[fi])
+        speed = np.minimum(desired, max_speed_for_gap(
+            gap_lead, v_o[li], cfg.idm, vtype.comfort_accel, vtype.comfort_decel))
+        # The follower (a car or the ego) must not find the newcomer inside its desired
+        # gap: it then brakes by at most its a_max, never hard.
+        a_f = self._a_all[idx][fi]
+        b_f = (0.5 * self._tsab_all[idx][fi]) ** 2 / a_f
+        ok = (
+            (gap_lead >= cfg.spawn_min_gap)
+            & (gap_follow >= cfg.spawn_min_gap)
+            & (gap_follow >= desired_gap(v_o[fi], speed, cfg.idm, a_f, b_f))
+        )
+        if not ok.any():
+            return -1, 0.0
+        k = int(ok.argmax())
+        return k, float(speed[k])
+
+    def _place(self, i: int, placed: NDArray[np.bool_], rng: np.random.Generator,
+               offsets: FloatArray) -> bool:
+        """Draw a type, lanes and desired speeds for car ``i``; place it if a spot fits."""
+        cfg = self.config
+        type_index = int(rng.choice(len(VEHICLE_TYPES), p=self._type_p))
+        lanes = rng.integers(0, self._lanes, size=len(offsets))
+        u = rng.random(len(offsets))
+        lo_a, hi_a = cfg.speed_ahead_mph
+        lo_b, hi_b = cfg.speed_behind_mph
+        desired = MPH * np.where(offsets > 0, lo_a + u * (hi_a - lo_a), lo_b + u * (hi_b - lo_b))
+        k, speed = self._find_spot(placed, type_index, offsets, lanes, desired)
+        if k < 0:
+            return False
+        s = float(self._ref.wrap_s(self._ego[0] + offsets[k]))
+        self._new_car(i, type_index, s, int(lanes[k]), speed, float(desired[k]), rng)
+        return True
+
+    def _free_spot(self, i: int, rel: FloatArray, type_index: int, spread: float,
+                   rng: np.random.Generator) -> tuple[float, int] | None:
+        """Reset: a centre (s relative to the ego) and lane for car ``i``, drawn uniformly
+        over the room that keeps ``spawn_min_gap`` to cars ``0 .. i-1`` and the ego."""
+        cfg = self.config
+        half = 0.5 * VEHICLE_TYPES[type_index].length
+        others = np.append(rel[:i], 0.0)  # placed cars, then the ego
+        reach = (np.append(self._half_len_all[:i], 0.5 * cfg.ego_length) + half
+                 + cfg.spawn_min_gap) / self._min_scale
+        occupied = np.vstack([self._occupancy()[:i], self._ego_occupancy(self._ego[1])[0]])
+        pieces: list[tuple[int, float, float]] = []
+        for lane in range(self._lanes):
+            mask = occupied[:, lane]
+            lo, hi = -spread + half, spread - half
+            starts, ends = others[mask] - reach[mask], others[mask] + reach[mask]
+            order = np.argsort(starts)
+            starts, ends = starts[order], np.maximum.accumulate(ends[order])
+            # Free room: before the first blocked interval, between them, after the last.
+            room_lo = np.concatenate([[lo], ends])
+            room_hi = np.concatenate([starts, [hi]])
+            room_lo, room_hi = np.maximum(room_lo, lo), np.minimum(room_hi, hi)
+            pieces += [(lane, a, b) for a, b in zip(room_lo, room_hi, strict=True) if b > a]
+        if not pieces:
+            return None
+        sizes = np.array([b - a for _, a, b in pieces])
+        lane, a, b = pieces[int(rng.choice(len(pieces), p=sizes / sizes.sum()))]
+        return float(rng.uniform(a, b)), lane
+
+    def _settle_speeds(self) -> None:
+        """Reset: slow each car, front to back, to a speed whose IDM gap fits its leader."""
+        cfg = self.config
+        n = self.n
+        ego_s, ego_d, ego_speed = self._ego
+        self._fill_objects(ego_s, ego_d, ego_speed)
+        rel = self._ref.s_difference(self._s_all, ego_s)  # the ego has rel 0
+        scale = 1.0 + self._curvature(self._s_all[:n]) * self.d
+        occ = self._occ_all
+        for i in np.argsort(-rel[:n], kind="stable"):
+            lane = self._origin[i]
+            ahead = occ[:, lane] & (rel > rel[i])
+            if not ahead.any():
+                continue
+            j = int(np.flatnonzero(ahead)[np.argmin(rel[ahead])])
+            gap = (rel[j] - rel[i]) * scale[i] - self._half_len_all[i] - self._half_len_all[j]
+            a_i = self._a_all[i]
+            b_i = (self._tsab_all[i] / 2.0) ** 2 / a_i
+            safe = float(max_speed_for_gap(gap, self._v_all[j], cfg.idm, a_i, b_i))
+            self.speed[i] = self._v_all[i] = min(self.speed[i], safe)
+
+    # ------------------------------------------------------------------ public API
+    def reset(self, rng: np.random.Generator, ego_s: float, ego_d: float,
+              ego_speed: float = 0.0) -> None:
+        """Place ``car_count`` cars around the ego car (see the module docstring).
+
+        All randomness of the episode comes from ``rng`` (kept for :meth:`advance`).
+        ``ego_speed`` defaults to the original's start at rest. Raises ``ValueError`` if
+        the cars cannot be placed within ``spawn_range``.
+        """
+        cfg = self.config
+        self._allocate(cfg.car_count)
+        self._rng = rng
+        self._ego = (float(ego_s) % self._loop, float(ego_d), float(ego_speed))
+        spread_max = self._range - 10.0
+        spread = min(0.75 * self._range / cfg.density, spread_max)
+        rel = np.zeros(self.n)
+        for i in range(self.n):
+            type_index = int(rng.choice(len(VEHICLE_TYPES), p=self._type_p))
+            while (spot := self._free_spot(i, rel, type_index, spread, rng)) is None:
+                if spread >= spread_max:
+                    raise ValueError(
+                        f"cannot place {self.n} traffic cars within +-{spread_max:.0f} m of "
+                        f"the ego on {self._lanes} lanes; lower car_count or raise spawn_range"
+                    )
+                spread = min(1.25 * spread, spread_max)
+            rel[i], lane = spot
+            lo, hi = cfg.speed_ahead_mph if rel[i] > 0.0 else cfg.speed_behind_mph
+            desired = MPH * rng.uniform(lo, hi)
+            s = float(self._ref.wrap_s(self._ego[0] + rel[i]))
+            self._new_car(i, type_index, s, lane, desired, desired, rng)
+        self._settle_speeds()
+        self._kappa = self._curvature(self.s)
+        self._update_pose(self.samples_now())
+
+    def reset_to(self, rng: np.random.Generator, ego_s: float, ego_d: float, ego_speed: float,
+                 *, s: ArrayLike, lane: ArrayLike, speed: ArrayLike,
+                 desired_speed: ArrayLike | None = None,
+                 type_index: ArrayLike | None = None) -> None:
+        """Start from explicit cars instead of a random placement (scenarios, replays, tests).
+
+        Args:
+            rng: randomness for the rest of the episode (wander phases, respawns, rogue).
+            ego_s, ego_d, ego_speed: the ego car's state.
+            s, lane, speed: ``(n,)`` each car's arc length (m), lane index, speed (m/s);
+                ``n`` may differ from ``config.car_count``.
+            desired_speed: ``(n,)`` m/s; default: ``speed``.
+            type_index: ``(n,)`` indices into :data:`VEHICLE_TYPES`; default: all cars.
+        """
+        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+        n = len(s)
+        lane = np.broadcast_to(np.asarray(lane, dtype=np.int64), (n,))
+        speed = np.broadcast_to(np.asarray(speed, dtype=np.float64), (n,))
+        desired = speed if desired_speed is None else np.broadcast_to(
+            np.asarray(desired_speed, dtype=np.float64), (n,))
+        types = np.zeros(n, dtype=np.int64) if type_index is None else np.broadcast_to(
+            np.asarray(type_index, dtype=np.int64), (n,))
+        if np.any((lane < 0) | (lane >= self._lanes)):
+            raise ValueError(f"lane must be in [0, {self._lanes}); got {lane.tolist()}")
+        if np.any((types < 0) | (types >= len(VEHICLE_TYPES))):
+            raise ValueError(f"type_index must be in [0, {len(VEHICLE_TYPES)})")
+        self._allocate(n)
+        self._rng = rng
+        self._ego = (float(ego_s) % self._loop, float(ego_d), float(ego_speed))
+        for i in range(n):
+            self._new_car(i, int(types[i]), float(s[i] % self._loop), int(lane[i]),
+                          float(speed[i]), float(desired[i]), rng)
+        self._kappa = self._curvature(self.s)
+        self._update_pose(self.samples_now())
+
+    def samples_now(self) -> TrafficSamples:
+        """The current state as a one-step :class:`TrafficSamples`."""
+        d, d_dot = self._lateral(1, self._step - 1)
+        return self._pose(self.s[None, :], d, self.speed[None, :], d_dot)
+
+    def advance(self, steps: int, ego_s: ArrayLike, ego_d: ArrayLike,
+                ego_speed: ArrayLike) -> TrafficSamples:
+        """Simulate ``steps`` physics steps; return the state after each one.
+
+        Args:
+            steps: number of physics steps (>= 1).
+            ego_s, ego_d, ego_speed: ``(steps,)`` the ego's Frenet state and speed (m/s)
+                after each sub-step. A decision instant uses the latest ego state before
+                it (the previous call's last one for a decision at the start).
+        """
+        if self._rng is None:
+            raise RuntimeError("call reset() before advance()")
+        if steps < 1:
+            raise ValueError(f"steps must be >= 1; got {steps}")
+        ego_s = np.asarray(ego_s, dtype=np.float64).reshape(steps)
+        ego_d = np.asarray(ego_d, dtype=np.float64).reshape(steps)
+        ego_speed = np.asarray(ego_speed, dtype=np.float64).reshape(steps)
+        period = self.config.decision_period
+        parts: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = []
+        done = 0
+        while done < steps:
+            phase = self._step % period
+            if phase == 0:
+                if done:
+                    self._ego = (float(ego_s[done - 1]) % self._loop, float(ego_d[done - 1]),
+                                 float(ego_speed[done - 1]))
+                self._decide()
+            m = min(steps - done, period - phase)
+            parts.append(self._segment(m))
+            done += m
+        if len(parts) == 1:
+            s, d, v, d_dot = parts[0]
+        else:
+            s, d, v, d_dot = (np.concatenate(p) for p in zip(*parts, strict=True))
+        self._ego = (float(ego_s[-1]) % self._loop, float(ego_d[-1]), float(ego_speed[-1]))
+        samples = self._pose(s, d, v, d_dot)
+        self._update_pose(samples)
+        return samples
+
+    # ------------------------------------------------------------------ kinematics
+    def _cell(self, s: FloatArray) -> tuple[IntArray, FloatArray]:
+        """Grid cell and fraction within it of wrapped ``s`` (in ``[0, L]``)."""
+        u = s * self._grid_scale
+        i = np.minimum(u.astype(np.intp), self._grid_count - 1)  # s == L after rounding
+        return i, u - i
+
+    def _curvature(self, s: FloatArray) -> FloatArray:
+        """Signed curvature at wrapped ``s`` from the table (linear interpolation)."""
+        return np.interp(s, self._kappa_grid, self._kappa_table)
+
+    def _sub_times(self, m: int) -> tuple[IntArray, FloatArray]:
+        cached = self._times.get(m)
+        if cached is None:
+            k = np.arange(1, m + 1, dtype=np.int64)[:, None]
+            cached = self._times.setdefault(m, (k, k * self.dt))
+        return cached
+
+    def _lateral(self, m: int, base: int) -> tuple[FloatArray, FloatArray]:
+        """d and d_dot ``(m, n)`` after steps ``base + 1 .. base + m`` (closed form)."""
+        cfg = self.config
+        k, t = self._sub_times(m)
+        if self._occ_dirty:
+            self._center = (self._origin + 0.5) * self._lane_width
+        if cfg.lateral_wander > 0.0:
+            angle = self._wander_omega * (base * self.dt + t) + self._wander_phase
+            d = self._center + cfg.lateral_wander * np.sin(angle)
+            d_dot = self._wander_speed * np.cos(angle)
+        else:
+            d = self._center + np.zeros((m, 1))
+            d_dot = np.zeros((m, self.n))
+        if self._changing_any:
+            k = base + k
+            tau = np.clip((k - self._lc_start) * (self.dt / self._lc_duration), 0.0, 1.0)
+            tau2 = tau * tau
+            shift = (self.target_lane - self._origin) * self._lane_width
+            # Quintic minimum-jerk step 10t^3 - 15t^4 + 6t^5 and its time derivative.
+            d += shift * (tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0)))
+            d_dot += (30.0 * shift / self._lc_duration) * (tau2 * (1.0 - tau) ** 2)
+        return d, d_dot
+
+    def _segment(self, m: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+        """``m`` sub-steps with the held accelerations: s (unwrapped), d, speed, d_dot."""
+        _, t = self._sub_times(m)
+        v0, acc = self.speed, self._acc
+        # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
+        t_stop = np.where(acc < 0.0, v0, np.inf) / np.maximum(-acc, 1e-12)
+        te = np.minimum(t, t_stop)
+        v = v0 + acc * te
+        dist = te * (v0 + 0.5 * acc * te)
+        d, d_dot = self._lateral(m, self._step)
+        # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
+        inc = dist.copy()
+        inc[1:] -= dist[:-1]
+        s = self.s + np.cumsum(inc / (1.0 + self._kappa * d), axis=0)
+        self.s = s[-1] % self._loop
+        self.speed = v[-1]
+        self.d = d[-1]
+        self._step += m
+        return s, d, v, d_dot
+
+    def _pose(self, s: FloatArray, d: FloatArray, v: FloatArray,
+              d_dot: FloatArray) -> TrafficSamples:
+        """World pose of ``(steps, n)`` Frenet states: one table lookup for all of them."""
+        s = s % self._loop
+        i, f = self._cell(s)
+        geo = self._geo[i] + f[..., None] * self._geo_step[i]  # (steps, n, 4)
+        tx, ty = geo[..., 2], geo[..., 3]
+        # Right normal n = (ty, -tx); velocity = v * tangent + d_dot * n.
+        x = geo[..., 0] + d * ty
+        y = geo[..., 1] - d * tx
+        vx = v * tx + d_dot * ty
+        vy = v * ty - d_dot * tx
+        # Heading of the motion; a (near) stopped car keeps pointing along its lane.
+        v_eff = np.maximum(v, 1.0)
+        heading = np.arctan2(v_eff * ty - d_dot * tx, v_eff * tx + d_dot * ty)
+        return TrafficSamples(s=s, d=d, speed=v, x=x, y=y, heading=heading, vx=vx, vy=vy)
+
+    def _update_pose(self, samples: TrafficSamples) -> None:
+        self.s = samples.s[-1]
+        self.d = samples.d[-1]
+        self.speed = samples.speed[-1]
+        self.x = samples.x[-1]
+        self.y = samples.y[-1]
+        self.heading = samples.heading[-1]
+        self.vx = samples.vx[-1]
+        self.vy = samples.vy[-1]
+        lane = (self.d * (1.0 / self._lane_width)).astype(np.int64)
+        self.lane = np.minimum(np.maximum(lane, 0), self._lanes - 1)
+
+    # ------------------------------------------------------------------ decisions
+    def _fill_objects(self, ego_s: float, ego_d: float, ego_speed: float) -> None:
+        """Scratch arrays of all objects: the cars, then the ego at index n."""
+        n = self.n
+        self._s_all[:n] = self.s
+        self._s_all[n] = ego_s
+        self._d_all[:n] = self.d
+        self._d_all[n] = ego_d
+        self._v_all[:n] = self.speed
+        self._v_all[n] = ego_speed
+        if self._occ_dirty:  # only lane-change starts/ends and respawns move occupancy
+            occ = self._occ_all[:n]
+            np.equal(self._lane_ids, self._origin[:, None], out=occ)
+            occ |= self._lane_ids == self.target_lane[:, None]
+            self._penalty[:, 0, :n] = np.where(occ.T, 0.0, np.inf)
+            self._center = (self._origin + 0.5) * self._lane_width
+            self._occ_dirty = False
+        self._occ_all[n], self._penalty[:, 0, n] = self._ego_occupancy(ego_d)
+
+    def _recycle(self, rel: FloatArray) -> bool:
+        """Respawn (a few of) the cars further than ``spawn_range`` from the ego.
+
+        ``rel`` is each car's s minus the ego's (folded). Returns whether any car moved.
+        """
+        if self._step < self._respawn_blocked_until:
+            return False
+        far = (np.abs(rel) > self._range) & (self._respawn_wait <= self._step)
+        if not far.any():
+            return False
+        rng = self._rng
+        assert rng is not None
+        self._own_arrays()
+        idx = np.flatnonzero(far)
+        idx = idx[np.argsort(-np.abs(rel[idx]), kind="stable")][: self.config.respawn_per_decision]
+        moved = False
+        for i in idx:
+            placed = np.ones(self.n, dtype=bool)
+            placed[i] = False
+            # It fell behind: reappear ahead (slow); it ran away: reappear behind (fast).
+            side = 1.0 if rel[i] < 0.0 else -1.0
+            dist = rng.uniform(self._respawn_lo, self._respawn_hi, size=2 * _SPAWN_CANDIDATES)
+            dist[_SPAWN_CANDIDATES:] *= -1.0  # fall back to the other side
+            if self._place(int(i), placed, rng, side * dist):
+                self.ids[i] = self._next_id
+                self._next_id += 1
+                moved = True
+            else:  # no room (dense traffic): the car drives on; retry in a while
+                self._respawn_wait[i] = self._step + _RESPAWN_RETRY_STEPS
+                self._respawn_blocked_until = self._step + _RESPAWN_PAUSE_STEPS
+                break  # the others would not fit either, most likely
+        self._changing_any = bool((self._lc_end < _IDLE).any())
+        return moved
+
+    def _decide(self) -> None:
+        """One decision instant: recycle, leader search, IDM, lane changes, rogue events.
+
+        Per-lane quantities are ``(lanes, n)`` arrays (lane first: numpy's inner loops then
+        run over the cars, which is what makes the masked argmin cheap).
+        """
+        n = self.n
+        if n == 0:
+            return
+        cfg = self.config
+        ego_s, ego_d, ego_speed = self._ego
+        step = self._step
+        lanes = self._lanes
+        rows = self._rows
+        if self._changing_any:  # finished lane changes free their origin lane
+            finished = self._lc_end <= step
+            if finished.any():
+                self._origin = np.where(finished, self.target_lane, self._origin)
+                self._lc_start = np.where(finished, _NEVER, self._lc_start)
+                self._lc_end = np.where(finished, _IDLE, self._lc_end)
+                self._changing_any = bool((self._lc_end < _IDLE).any())
+                self._occ_dirty = True
+        self._fill_objects(ego_s, ego_d, ego_speed)
+        rel = self._relative(ego_s)
+        farthest = np.abs(rel).max()
+        if farthest > self._range and self._recycle(rel[:n]):  # cars moved: rebuild
+            self._fill_objects(ego_s, ego_d, ego_speed)
+            rel = self._relative(ego_s)
+            farthest = np.abs(rel).max()
+        # delta[i, j]: s of object j minus s of car i. Unfolded differences of the folded
+        # offsets from the ego are exact while every |rel| < L/4 (the usual case).
+        delta = rel - rel[:n, None]
+        if farthest >= 0.25 * self._loop:
+            delta = (delta + self._half_loop) % self._loop - self._half_loop
+        kappa = self._curvature(self._s_all)
+        self._kappa = kappa[:n]
+        scale_all = 1.0 + kappa * self._d_all
+        half_len = self._half_len_all
+
+        # Nearest object ahead / behind in every lane: argmin over (lane, car, object), the
+        # objects not occupying a lane pushed to inf by the penalty. Ties at delta = 0
+        # count as behind; a car is neither ahead of nor behind itself.
+        penalty = self._penalty  # (lanes, 1, n + 1)
+        behind2 = np.where(delta <= 0.0, -delta, np.inf)
+        behind2[rows, rows] = np.inf
+        ahead = np.where(delta > 0.0, delta, np.inf) + penalty
+        behind = behind2 + penalty
+        li = ahead.argmin(axis=2)  # (lanes, n) object index
+        fi = behind.argmin(axis=2)
+        lead_ds = ahead[self._lane_col, rows, li]
+        follow_ds = behind[self._lane_col, rows, fi]
+        own_half = half_len[:n]
+        # IDM inputs go straight into buffers: rows = every lane, then the own lane(s).
+        gaps, leader_v = self._gaps, self._leader_v
+        lead_gap, lead_v = gaps[:lanes], leader_v[:lanes]
+        np.multiply(lead_ds, scale_all[:n], out=lead_gap)
+        lead_gap -= own_half + half_len[li]
+        np.take(self._v_all, li, out=lead_v)
+        follow_gap = follow_ds * scale_all[fi] - (own_half + half_len[fi])
+
+        # IDM in every lane (as if there) and with the leader over the occupied lane(s).
+        if self._changing_any:  # nearest leader over both lanes of a changing car
+            own_gaps = lead_gap + penalty[:, 0, :n]  # inf in lanes the car is not in
+            own = own_gaps.argmin(axis=0)
+            gaps[lanes] = own_gaps[own, rows]
+        else:
+            own = self._origin
+            gaps[lanes] = lead_gap[own, rows]
+        leader_v[lanes] = lead_v[own, rows]
+        acc_all = idm_core(self.speed, self.desired_speed, gaps, leader_v,
+                           self._a_all[:n], self._tsab_all[:n], cfg.idm)
+        acc_lane, acc = acc_all[:lanes], acc_all[lanes]
+
+        # Lane-change wishes: clear +-clearance, MOBIL incentive and safety; sustained.
+        eligible = self.speed >= cfg.lane_change_min_speed
+        if self._changing_any:
+            eligible &= self._lc_end == _IDLE
+        if self._rogue_p > 0.0:
+            eligible &= step >= self._brake_until
+        clearance = cfg.lane_change_clearance
+        blocked = (lead_ds < clearance) | (follow_ds < clearance)
+        adjacent = self._adjacent[:, self._origin]
+        candidate = adjacent & ~blocked & (acc_lane - acc > cfg.lane_change_min_gain)
+        candidate &= eligible
+        start = None
+        if candidate.any():
+            self._v0_all[n] = max(ego_speed, 0.1)  # the ego "wants" its current speed
+            imposed = idm_core(self._v_all[fi], self._v0_all[fi], follow_gap, self.speed,
+                               self._a_all[fi], self._tsab_all[fi], cfg.idm)
+            limit = -cfg.lane_change_max_braking_imposed
+            candidate &= (acc_lane >= limit) & ((imposed >= limit) | np.isinf(follow_gap))
+            best = np.where(candidate, acc_lane, -np.inf).argmax(axis=0)
+            want = np.where(candidate[best, rows], best, -1)
+            self._held = np.where((want >= 0) & (want == self._pending), self._held + 1, 0)
+            self._pending = want
+            start = (want >= 0) & (self._held >= self._sustain_decisions)
+            if start.any():
+                # One start per target lane per decision (the lowest slot): two cars
+                # entering a lane at once did not see each other in their checks. The
+                # others keep their sustained wish and retry 0.1 s later, seeing it.
+                conflict = (want[:, None] == want) & start & self._tri
+                start &= ~conflict.any(axis=1)
+                self._begin_change(start, want, cfg.lane_change_duration)
+        else:
+            self._pending.fill(-1)
+            self._held.fill(0)
+
+        if self._rogue_p > 0.0:
+            if start is not None:
+                eligible &= ~start
+            acc = self._rogue(acc, eligible, adjacent, blocked, lead_gap, follow_gap,
+                              lead_v, self._v_all[fi])
+        self._acc = acc
+
+    def _relative(self, ego_s: float) -> FloatArray:
+        """s of every object (cars, then the ego) minus the ego's, folded to [-L/2, L/2)."""
+        return (self._s_all - ego_s + self._half_loop) % self._loop - self._half_loop
+
+    def _begin_change(self, start: NDArray[np.bool_], lane: IntArray, duration: float) -> None:
+        steps = math.ceil(duration / self.dt - 1e-9)
+        self.target_lane = np.where(start, lane, self.target_lane)
+        self._lc_start = np.where(start, self._step, self._lc_start)
+        self._lc_end = np.where(start, self._step + steps, self._lc_end)
+        self._lc_duration = np.where(start, duration, self._lc_duration)
+        self._pending = np.where(start, -1, self._pending)
+        self._held = np.where(start, 0, self._held)
+        self._changing_any = True
+        self._occ_dirty = True
+
+    def _rogue(self, acc: FloatArray, eligible: NDArray[np.bool_], adjacent: NDArray[np.bool_],
+               blocked: NDArray[np.bool_], lead_gap: FloatArray, follow_gap: FloatArray,
+               lead_v: FloatArray, follow_v: FloatArray) -> FloatArray:
+        """Rogue events: hard-braking episodes and cut-ins (see :class:`TrafficConfig`).
+
+        A cut-in takes a gap the normal rule refuses (someone within the clearance) but
+        one that braking at ``idm.max_braking`` after a decision period's delay survives,
+        for the car cutting in and for its new follower (a car or the ego): a surprise,
+        not a certain crash.
+        """
+        cfg = self.config
+        rng = self._rng
+        assert rng is not None
+        step = self._step
+        u = rng.random((2 + self._lanes, self.n))
+        event = u[0] < self._rogue_p
+        brake = event & (u[1] < 0.5) & (step >= self._brake_until)
+        cut = event & (u[1] >= 0.5)
+        self._brake_until = np.where(brake, step + self._brake_steps, self._brake_until)
+        self._cut_in_until = np.where(cut, step + self._cut_in_window_steps, self._cut_in_until)
+        self.rogue_brake_count += int(brake.sum())
+        trying = eligible & (step < self._cut_in_until)
+        if trying.any():
+            v, delay, gap = self.speed, self._decision_dt, cfg.rogue_cut_in_gap
+            room = (lead_gap >= gap + _stopping_gap(v, lead_v, cfg, delay)) & (
+                follow_gap >= gap + _stopping_gap(follow_v, v, cfg, delay))
+            candidate = trying & adjacent & blocked & room
+            pick = np.where(candidate, u[2:], -1.0).argmax(axis=0)
+            go = candidate[pick, self._rows]
+            if go.any():
+                self._begin_change(go, pick, cfg.rogue_cut_in_duration)
+                self._cut_in_until = np.where(go, 0, self._cut_in_until)
+                self.rogue_cut_in_count += int(go.sum())
+        braking = step < self._brake_until
+        return np.where(braking, np.minimum(acc, -cfg.rogue_brake_decel), acc)
