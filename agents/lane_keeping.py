@@ -56,8 +56,8 @@ class LaneKeepingDriver:
 
     def reset(self) -> None:
         """Forget the planned queue (call at the start of each episode)."""
-        # Queue of planned states, one row per point: x, y, s, d, v, a.
-        self._queue = np.zeros((0, 6))
+        # Queue of planned states, one row per point: x, y, s, d, v, a, road curvature.
+        self._queue = np.zeros((0, 7))
         self._lane_d: float | None = None
 
     def act(self, observation: dict[str, NDArray]) -> NDArray[np.float64]:
@@ -70,26 +70,27 @@ class LaneKeepingDriver:
         # The simulator consumed the head of our queue; keep what it still has.
         self._queue = self._queue[len(self._queue) - min(remaining, len(self._queue)):]
         if len(self._queue):
-            _, _, s, d, v, a = self._queue[-1]
+            _, _, s, d, v, a, curvature = self._queue[-1].tolist()
         else:
-            s, d, v, a = ego[2], ego[3], ego[5], 0.0
+            s, d, v, a = float(ego[2]), float(ego[3]), float(ego[5]), 0.0
+            curvature = float(self.road.reference.curvature(s))
         new = p.horizon_points - len(self._queue)
         if new <= 0:
             return self._queue[:, :2].copy()
         lead_gap, lead_speed = self._lead(observation, s, v, len(self._queue))
         reference = self.road.reference
-        rows = np.empty((new, 6))
+        rows = np.empty((new, 7))
         v_goal = p.target_speed_mph * MPH_TO_MPS
-        # The new points span under a metre: one curvature for all of them is exact enough.
-        curvature = float(reference.curvature(s))
+        # The new points span about a metre: the curvature at the last planned point is
+        # exact enough for all of them (it is refreshed with every batch).
         for i in range(new):
             a = self._next_acceleration(v, a, v_goal, lead_gap, lead_speed)
             v = max(v + a * PHYSICS_DT, 0.0)
             d += min(max(self._lane_d - d, -p.lateral_rate), p.lateral_rate)
             s += v * PHYSICS_DT / (1.0 + curvature * d)
             lead_gap -= (v - lead_speed) * PHYSICS_DT
-            rows[i, 2:] = s, d, v, a
-        rows[:, :2] = reference.to_xy(rows[:, 2], rows[:, 3])
+            rows[i, 2:6] = s, d, v, a
+        rows[:, :2], rows[:, 6] = reference.to_xy_and_curvature(rows[:, 2], rows[:, 3])
         rows[:, 2] = reference.wrap_s(rows[:, 2])
         self._queue = np.vstack([self._queue, rows])
         return self._queue[:, :2].copy()

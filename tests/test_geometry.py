@@ -173,3 +173,17 @@ def test_from_waypoints_fills_the_original_columns():
     assert np.allclose(np.hypot(*normals.T), 1.0)
     # Counter-clockwise circle: the right normal points away from the centre.
     assert np.all(np.sum(normals * highway.waypoints[:, :2], axis=1) > 0)
+
+
+def test_scalar_and_vectorized_projection_agree(original_highway, monkeypatch):
+    import sdc_gym.geometry.reference_line as module
+
+    line = original_highway.reference
+    rng = np.random.default_rng(5)
+    s = rng.uniform(0, line.length, 10)
+    xy = line.to_xy(s, rng.uniform(0, 12, 10))
+    small = line.to_frenet(xy, s_guess=s + 0.3)
+    monkeypatch.setattr(module, "_SCALAR_BATCH_LIMIT", 0)
+    vectorized = line.to_frenet(xy, s_guess=s + 0.3)
+    for a, b in zip(small, vectorized, strict=True):
+        assert np.abs(a - b).max() < 1e-9

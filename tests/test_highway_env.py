@@ -179,6 +179,12 @@ def test_telemetry_matches_the_original_fields_and_units():
     assert np.allclose(row[1:], obs["sensor_fusion"][0][1:], rtol=1e-6, atol=1e-3)
     # 7 significant digits, like the original's float printing.
     assert telemetry["x"] == float(f"{telemetry['x']:.7g}")
+    # Built lazily, but a plain dict for json and for pickling (vector envs).
+    import json
+    import pickle
+
+    assert json.loads(json.dumps(dict(telemetry))) == dict(telemetry)
+    assert pickle.loads(pickle.dumps(telemetry)) == dict(telemetry)
 
 
 def test_same_seed_same_actions_same_episode_bit_for_bit():

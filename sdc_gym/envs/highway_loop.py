@@ -16,7 +16,7 @@ from sdc_gym.geometry.collision import first_contact
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
-from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, telemetry_message
+from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, TelemetryMessage
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
 from sdc_gym.units import MPS_TO_MPH
 
@@ -159,7 +159,7 @@ class HighwayLoopEnv(gym.Env):
         "reward_progress": 1.0,      # weight of normalised progress
         "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                             "speed": -1.0, "lane": -1.0, "off_road": -1.0},
-        "telemetry_info": True,      # put the original's telemetry dict in info
+        "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
         "render_width": 600,         # px
         "render_height": 600,        # px
         "render_pixels_per_meter": 5.0,
@@ -423,7 +423,7 @@ class HighwayLoopEnv(gym.Env):
         info["termination_reason"] = self._done_reason if final else ""
         info["summary"] = self._summary() if final else None
         if self.config["telemetry_info"]:
-            info["telemetry"] = telemetry_message(
+            info["telemetry"] = TelemetryMessage(
                 float(self._xy[0]), float(self._xy[1]), self._yaw, self._speed, self._s,
                 self._d, self._remaining_path(), *self._end_sd,
                 self._fusion[self._fusion_mask])

@@ -8,11 +8,13 @@ x, y there). All are off by default, so the default sensor is the original's noi
 
 :func:`telemetry_message` builds the flat dict the original sends in
 ``42["telemetry",{...}]``: yaw in degrees, speed in mph, numbers rounded to the 7
-significant digits of the original's 32-bit float printing.
+significant digits of the original's 32-bit float printing. The env hands it out as a
+:class:`TelemetryMessage`, which builds that dict only when first read.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -138,3 +140,43 @@ def telemetry_message(
         "end_path_s": ego[6], "end_path_d": ego[7],
         "sensor_fusion": rows,
     }
+
+
+class TelemetryMessage(Mapping[str, Any]):
+    """The original's telemetry object, built on first access.
+
+    Formatting a message costs about as much as a tenth of a physics step, and most steps
+    (training, evaluation) nobody reads it, so the env stores the inputs and builds the
+    dict lazily. It behaves as a read-only mapping; ``dict(message)`` (or
+    :meth:`to_dict`) gives a plain dict, e.g. for ``json.dumps``; pickling (vector envs
+    in subprocesses) sends the plain dict.
+    """
+
+    __slots__ = ("_arguments", "_message")
+
+    def __init__(self, *arguments: Any) -> None:
+        """Takes :func:`telemetry_message`'s arguments (arrays must not change later)."""
+        self._arguments: tuple[Any, ...] | None = arguments
+        self._message: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        if self._message is None:
+            assert self._arguments is not None
+            self._message = telemetry_message(*self._arguments)
+            self._arguments = None
+        return self._message
+
+    def __getitem__(self, key: str) -> Any:
+        return self.to_dict()[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self.to_dict())
+
+    def __len__(self) -> int:
+        return len(self.to_dict())
+
+    def __repr__(self) -> str:
+        return f"TelemetryMessage({self.to_dict()!r})"
+
+    def __reduce__(self) -> tuple[Any, ...]:
+        return (dict, (self.to_dict(),))
