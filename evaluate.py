@@ -69,6 +69,8 @@ def main(argv: list[str] | None = None) -> None:
     rows = aggregate(episodes)
     write_results(args.output, episodes, rows)
     console = Console()
+    if not console.is_terminal:  # logs and CI: do not squeeze the table into 80 columns
+        console = Console(width=200)
     console.print(results_table(rows, f"{env_id}: {args.episodes} seed(s) x {args.laps} lap(s)"))
     console.print(f"results: {args.output / 'summary.json'}, {args.output / 'episodes.csv'}")
 

@@ -143,8 +143,8 @@ def results_table(rows: list[dict[str, Any]], title: str) -> Any:
     from rich.table import Table
 
     table = Table(title=title)
-    for header in ("agent", "laps", "mean lap (s)", "best lap (s)", "mean mph",
-                   "miles w/o incident", *INCIDENT_KINDS, "max acc", "max jerk"):
+    for header in ("agent", "laps", "mean lap s", "best lap s", "mean mph",
+                   "miles no incident", *INCIDENT_KINDS, "max acc", "max jerk"):
         table.add_column(header, justify="left" if header == "agent" else "right")
 
     def seconds(value: float | None) -> str:

@@ -261,3 +261,17 @@ def test_rgb_render_and_record_video(tmp_path):
         done = terminated or truncated
     env.close()
     assert list(tmp_path.glob("*.mp4"))
+
+
+def test_human_render_mode_runs_headless(monkeypatch):
+    monkeypatch.setenv("SDL_VIDEODRIVER", "dummy")
+    env = gym.make(ENV_ID, config={"max_duration": 0.3}, render_mode="human")
+    driver = LaneKeepingDriver(env.unwrapped.road)
+    obs, _ = env.reset(seed=0)
+    done = False
+    while not done:
+        obs, _, terminated, truncated, _ = env.step(driver.act(obs))
+        done = terminated or truncated
+    assert env.render() is None
+    env.close()
+    env.close()  # safe twice
