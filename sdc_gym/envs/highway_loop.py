@@ -124,7 +124,8 @@ class HighwayLoopEnv(gym.Env):
     count collisions and drive on, like the original), or ``laps`` laps completed
     (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
     carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
-    distance without incident), ``is_success`` and ``termination_reason``; every step's
+    distance without incident, and ``incident_log``: each incident's kind, time, step,
+    x, y, s, d and value), ``is_success`` and ``termination_reason``; every step's
     ``info`` has the same keys (``summary`` is ``None`` until the end).
 
     ## Arguments
@@ -434,6 +435,7 @@ class HighwayLoopEnv(gym.Env):
         summary["is_success"] = self.metrics.laps_completed >= self.config["laps"]
         summary["termination_reason"] = self._done_reason
         summary["collided"] = self._collided
+        summary["incident_log"] = [incident.as_dict() for incident in self.metrics.incidents]
         return summary
 
     # ------------------------------------------------------------------ rendering
