@@ -86,7 +86,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
-from sdc_gym.traffic.idm import IDMParameters, desired_gap, idm_core, max_speed_for_gap
+from sdc_gym.traffic.idm import _NOT_ZERO as _IDM_NOT_ZERO
+from sdc_gym.traffic.idm import IDMParameters, desired_gap, max_speed_for_gap
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
 
 FloatArray = NDArray[np.float64]
@@ -270,6 +271,11 @@ class HighwayTraffic:
         self._brake_steps = round(config.rogue_brake_duration / self.dt)
         self._cut_in_window_steps = round(config.rogue_cut_in_window / self.dt)
         self._sustain_decisions = math.ceil(config.lane_change_sustain / self._decision_dt - 1e-9)
+        # Lane-change profile tables: a change is evaluated at most its duration plus a
+        # decision period past its start (its end is processed at the next decision).
+        longest = max(config.lane_change_duration, config.rogue_cut_in_duration)
+        self._lc_table_len = math.ceil(longest / self.dt) + 2 * config.decision_period + 4
+        self._lc_profiles: dict[float, FloatArray] = {}
         self._ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
         # Geometry tables on a uniform s grid, interpolated linearly: a lookup is a
         # handful of numpy calls, against ~30 for a spline evaluation, and the error is
@@ -284,6 +290,20 @@ class HighwayTraffic:
         table = np.vstack([table, table[:1]])
         self._geo = table[:-1].copy()
         self._geo_step = np.diff(table, axis=0)
+        # The same table component-first, for one gather per lookup: rows x, y, tx, ty,
+        # ty, -tx (the right normal's two components follow the tangent), then the steps
+        # to the next grid point of each. One extra column, the value at the end of the
+        # last cell, lets s == L (after rounding) skip the clamp of the cell index.
+        values = np.column_stack([self._geo, self._geo[:, 3], -self._geo[:, 2]]).T
+        steps = np.column_stack(
+            [self._geo_step, self._geo_step[:, 3], -self._geo_step[:, 2]]).T
+        end = values[:, -1] + 1.0 * steps[:, -1]
+        self._geo_t = np.ascontiguousarray(np.vstack([
+            np.column_stack([values, end]), np.column_stack([steps, np.zeros(6)])]))
+        self._clamp_cell = self._loop * self._grid_scale > count
+        # A car's d stays within [w/2 - wander, (lanes - 1/2) w + wander]: inside the road
+        # (its lane index needs no clamp) while the wander is under half a lane.
+        self._clamp_lane = config.lateral_wander >= 0.45 * self._lane_width
         kappa = self._ref.curvature(grid[:-1])
         self._kappa_grid = grid
         self._kappa_table = np.append(kappa, kappa[0])
@@ -316,26 +336,81 @@ class HighwayTraffic:
         self.vy: FloatArray = zeros.copy()
         self.rogue_brake_count = 0
         self.rogue_cut_in_count = 0
-        # Per-car IDM constants, with the ego appended (index n) for the leader search.
+        # Per-object quantities, the cars then the ego (index n), stacked so that one
+        # gather picks all of a follower's: speed, v * T, a_max * (free-road term), a_max,
+        # 2 sqrt(a_max b), desired speed. The first three are refreshed at each decision.
+        lanes = self._lanes
+        ar = np.arange(n)
+        self._obj = np.zeros((6, n + 1))
+        self._v_all = self._obj[0]
+        self._vt_all = self._obj[1]
+        self._afree_all = self._obj[2]
+        self._a_all = self._obj[3]
+        self._tsab_all = self._obj[4]  # 2 sqrt(a b)
+        self._v0_all = self._obj[5]
+        self._a_all[n] = cfg.idm.a_max
+        self._tsab_all[n] = self._ego_tsab
+        self._v0_all[n] = 0.1
         self._half_len_all = np.append(zeros, 0.5 * cfg.ego_length)
-        self._a_all = np.append(zeros, cfg.idm.a_max)
-        self._tsab_all = np.append(zeros, self._ego_tsab)  # 2 sqrt(a b)
-        self._v0_all = np.zeros(n + 1)
         self._s_all = np.zeros(n + 1)  # scratch, filled at each decision
         self._d_all = np.zeros(n + 1)
-        self._v_all = np.zeros(n + 1)
-        self._occ_all = np.zeros((n + 1, self._lanes), dtype=bool)
+        self._scale_all = np.zeros(n + 1)
+        self._rel = np.zeros(n + 1)  # s minus the ego's, folded (the ego's stays 0)
+        self._occ_all = np.zeros((n + 1, lanes), dtype=bool)
         # Per lane, 0 for the objects occupying it and inf for the others; shaped to
         # broadcast against (car, object) matrices.
-        self._penalty = np.zeros((self._lanes, 1, n + 1))
-        self._lane_col = self._lane_ids[:, None]
+        self._penalty = np.zeros((lanes, 1, n + 1))
+        # The same for the search ahead [0] and behind [1] at once, (2, lanes, car,
+        # object); behind, a car is also excluded as its own follower (the diagonal).
+        self._penalty2 = np.zeros((2, lanes, n, n + 1))
+        self._self_inf = np.zeros((n, n + 1))
+        self._self_inf[ar, ar] = np.inf
+        self._ego_key: tuple[int, int] | None = None
+        # delta to every object [0] and its negative [1]; -1e-300 marks delta > 0 as not
+        # behind (nonzero |delta| are >= 2^-52: differences of folded s offsets).
+        self._delta2 = np.zeros((2, n, n + 1))
+        self._invalid = np.zeros((2, n, n + 1), dtype=bool)
+        self._search = np.zeros((2, lanes, n, n + 1))
+        self._invalid_cut = np.array([0.0, -1e-300])[:, None, None]
+        self._search_base = (np.arange(2 * lanes * n) * (n + 1)).reshape(2, lanes, n)
+        # Gap rows: every lane ahead, the own lane(s), every lane behind; the leader
+        # speeds in the same layout. [:lanes + 1] are the IDM inputs.
+        self._gap_v = np.zeros((2, 2 * lanes + 1, n))
+        self._gaps = self._gap_v[0, : lanes + 1]
+        self._leader_v = self._gap_v[1, : lanes + 1]
+        self._gap_v_flat = self._gap_v.reshape(2, -1)
+        row = (lanes + 1) * n * 8
+        self._ds_gap = np.lib.stride_tricks.as_strided(  # (2, lanes, n): ahead, behind
+            self._gap_v[0], shape=(2, lanes, n), strides=(row, n * 8, 8))
+        # Rows: every car, its leader per lane, its follower per lane (leader search
+        # indices); [0::2] picks the scale of the follower of each gap.
+        self._idx3 = np.zeros((3, lanes, n), dtype=np.intp)
+        self._idx3[0] = ar
+        self._halves2 = np.zeros((2, lanes, n, n + 1))  # half lengths of car + object
+        self._hh_dirty = True
+        # IDM follower terms (v, vT, a_max * free, a_max, 2 sqrt(a_max b)) in the gap rows:
+        # the car itself in every lane ahead and its own, the new follower behind it.
+        self._idm_par = np.zeros((5, 2 * lanes + 1, n))
+        self._own_flat = ar.copy()  # own lane * n + car, while not changing
+        # IDM results in the gap rows; row `lanes` is each car's acceleration, held
+        # between decisions. Rows 2 lanes + 1 and 3 lanes + 2 hold half of it and the
+        # wander's angular speed: (acc, acc / 2, omega) is one strided (3, 1, n) array,
+        # and the speed, the distance term and the wander angle of every sub-step come
+        # out of one multiply-add with (t, t, t_abs) and (v0, v0, phase).
+        self._idm_out = np.zeros((3 * lanes + 3, n))
+        self._acc = self._idm_out[lanes]
+        self._half_acc = self._idm_out[2 * lanes + 1]
+        self._wander_omega = self._idm_out[3 * lanes + 2]
+        self._rate3 = np.lib.stride_tricks.as_strided(
+            self._acc, shape=(3, 1, n), strides=((lanes + 1) * n * 8, 0, 8))
+        self._start3 = np.zeros((3, 1, n))
+        self._wander_phase = self._start3[2, 0]
+        self._speed_low: tuple[FloatArray | None, float] = (None, 0.0)
+        self._idm_tmp = np.zeros(n + 1)
         self._occ_dirty = True  # lanes changed since the occupancy was last built
         self._center = np.zeros(n)  # d of the centre of each car's origin lane
         self._respawn_wait = np.zeros(n, dtype=np.int64)  # step before which not to retry
-        self._gaps = np.zeros((self._lanes + 1, n))  # IDM inputs: every lane, then own
-        self._leader_v = np.zeros((self._lanes + 1, n))
         # Dynamics and decisions.
-        self._acc = zeros.copy()  # held between decisions
         self._kappa = zeros.copy()  # curvature at the last decision (for ds/dt)
         self._origin = np.zeros(n, dtype=np.int64)  # lane a change started from
         self._lc_start = np.full(n, _NEVER, dtype=np.int64)  # step it started
@@ -344,11 +419,15 @@ class HighwayTraffic:
         self._changing_any = False
         self._pending = np.full(n, -1, dtype=np.int64)  # lane wished at the last decision
         self._held = np.zeros(n, dtype=np.int64)  # decisions the wish has held since
-        self._wander_omega = zeros.copy()
-        self._wander_phase = zeros.copy()
         self._wander_speed = zeros.copy()  # amplitude * omega: peak lateral speed
         self._brake_until = np.zeros(n, dtype=np.int64)
         self._cut_in_until = np.zeros(n, dtype=np.int64)
+        # Upper bounds of the three arrays above (step numbers), to skip work past them.
+        self._brake_max = 0
+        self._cut_in_max = 0
+        self._lc_next_end = _IDLE  # lower bound of _lc_end
+        self._wishes = False  # some _pending / _held may be set
+        self._lc_dirty = True  # the per-car lane-change constants need a rebuild
         self._rows = np.arange(n)
         self._tri = np.tri(n, k=-1, dtype=bool)
         self._step = 0
@@ -381,6 +460,7 @@ class HighwayTraffic:
         self.length[i] = vtype.length
         self.width[i] = vtype.width
         self._half_len_all[i] = 0.5 * vtype.length
+        self._hh_dirty = True
         self._a_all[i] = vtype.comfort_accel
         self._tsab_all[i] = 2.0 * math.sqrt(vtype.comfort_accel * vtype.comfort_decel)
         self.s[i] = s
@@ -398,6 +478,7 @@ class HighwayTraffic:
         self._wander_omega[i] = 2.0 * np.pi / rng.uniform(*cfg.wander_period)
         self._wander_phase[i] = rng.uniform(0.0, 2.0 * np.pi)
         self._wander_speed[i] = cfg.lateral_wander * self._wander_omega[i]
+        self._lc_dirty = True
         self.d[i] = (lane + 0.5) * self._lane_width + cfg.lateral_wander * math.sin(
             self._wander_omega[i] * self._step * self.dt + self._wander_phase[i]
         )
@@ -612,104 +693,194 @@ class HighwayTraffic:
         ego_d = np.asarray(ego_d, dtype=np.float64).reshape(steps)
         ego_speed = np.asarray(ego_speed, dtype=np.float64).reshape(steps)
         period = self.config.decision_period
-        parts: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = []
-        done = 0
-        while done < steps:
-            phase = self._step % period
+        phase = self._step % period
+        if steps <= period - phase:  # the usual call: at most one decision, at the start
             if phase == 0:
-                if done:
-                    self._ego = (float(ego_s[done - 1]) % self._loop, float(ego_d[done - 1]),
-                                 float(ego_speed[done - 1]))
                 self._decide()
-            m = min(steps - done, period - phase)
-            parts.append(self._segment(m))
-            done += m
-        if len(parts) == 1:
-            s, d, v, d_dot = parts[0]
+            s, d, v, d_dot, low = self._segment(steps, last=True)
         else:
+            low = None
+            parts: list[tuple[FloatArray, FloatArray, FloatArray, FloatArray]] = []
+            done = 0
+            while done < steps:
+                phase = self._step % period
+                if phase == 0:
+                    if done:
+                        self._ego = (float(ego_s[done - 1]) % self._loop,
+                                     float(ego_d[done - 1]), float(ego_speed[done - 1]))
+                    self._decide()
+                m = min(steps - done, period - phase)
+                parts.append(self._segment(m)[:4])
+                done += m
             s, d, v, d_dot = (np.concatenate(p) for p in zip(*parts, strict=True))
         self._ego = (float(ego_s[-1]) % self._loop, float(ego_d[-1]), float(ego_speed[-1]))
-        samples = self._pose(s, d, v, d_dot)
+        samples = self._pose(s, d, v, d_dot, low)
         self._update_pose(samples)
+        if low is not None and low > -np.inf:  # the new speeds' minimum, for the next call
+            self._speed_low = (self.speed, self._end_low)
         return samples
 
     # ------------------------------------------------------------------ kinematics
-    def _cell(self, s: FloatArray) -> tuple[IntArray, FloatArray]:
-        """Grid cell and fraction within it of wrapped ``s`` (in ``[0, L]``)."""
-        u = s * self._grid_scale
-        i = np.minimum(u.astype(np.intp), self._grid_count - 1)  # s == L after rounding
-        return i, u - i
-
     def _curvature(self, s: FloatArray) -> FloatArray:
         """Signed curvature at wrapped ``s`` from the table (linear interpolation)."""
         return np.interp(s, self._kappa_grid, self._kappa_table)
 
-    def _sub_times(self, m: int) -> tuple[IntArray, FloatArray]:
+    def _sub_times(self, m: int) -> tuple[IntArray, FloatArray, FloatArray, FloatArray]:
+        """Sub-step numbers ``(m, 1)``, their times, an ``(m + 1, n)`` scratch array whose
+        first row stays 0 (the distance at the segment start), and a ``(3, m, 1)`` one
+        holding the times twice (then the absolute times, filled by the caller)."""
         cached = self._times.get(m)
-        if cached is None:
+        if cached is None or cached[2].shape[1] != self.n:
             k = np.arange(1, m + 1, dtype=np.int64)[:, None]
-            cached = self._times.setdefault(m, (k, k * self.dt))
+            t = k * self.dt
+            times3 = np.stack([t, t, t])
+            cached = self._times[m] = (k, t, np.zeros((m + 1, self.n)), times3)
         return cached
 
-    def _lateral(self, m: int, base: int) -> tuple[FloatArray, FloatArray]:
-        """d and d_dot ``(m, n)`` after steps ``base + 1 .. base + m`` (closed form)."""
+    def _lc_profile(self, duration: float) -> FloatArray:
+        """``(2, J + 1)``: the quintic step and its derivative factor ``tau^2 (1 - tau)^2``
+        at ``j = 0 .. J`` steps into a lane change of ``duration`` (the same operations
+        on the same tau as evaluating them at every sub-step)."""
+        profile = self._lc_profiles.get(duration)
+        if profile is None:
+            j = np.arange(self._lc_table_len, dtype=np.int64)
+            tau = np.clip(j * (self.dt / np.array([duration])), 0.0, 1.0)
+            tau2 = tau * tau
+            step = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
+            profile = self._lc_profiles[duration] = np.stack([step, tau2 * (1.0 - tau) ** 2])
+        return profile
+
+    def _lc_constants(self) -> None:
+        """Per-car lane-change tables (they change only when a change starts or ends)."""
+        n, length = self.n, self._lc_table_len
+        shift = (self.target_lane - self._origin) * self._lane_width
+        self._lc_gain = np.stack([shift, 30.0 * shift / self._lc_duration])[:, None, :]
+        table = np.empty((2, n, length))
+        for duration in np.unique(self._lc_duration):
+            table[:, self._lc_duration == duration] = self._lc_profile(float(duration))[:, None]
+        self._lc_table = table.reshape(2, n * length)
+        # (step - lc_start) + car * length: the flat index of car's entry (a car not
+        # changing lands past the end, clipped to a finite entry that its zero gain
+        # cancels; a changing one stays within its row: see _lc_table_len).
+        self._lc_base = self._lc_start - self._rows * length
+        self._adj_idle = self._adjacent_own & (self._lc_end == _IDLE)
+        self._lc_dirty = False
+
+    def _lateral(self, m: int, base: int, angle: FloatArray | None = None
+                 ) -> tuple[FloatArray, FloatArray]:
+        """d and d_dot ``(m, n)`` after steps ``base + 1 .. base + m`` (closed form);
+        ``angle``: the wander's, if the caller has it."""
         cfg = self.config
-        k, t = self._sub_times(m)
+        k, t, _, _ = self._sub_times(m)
         if self._occ_dirty:
             self._center = (self._origin + 0.5) * self._lane_width
         if cfg.lateral_wander > 0.0:
-            angle = self._wander_omega * (base * self.dt + t) + self._wander_phase
-            d = self._center + cfg.lateral_wander * np.sin(angle)
-            d_dot = self._wander_speed * np.cos(angle)
+            if angle is None:
+                angle = self._wander_omega * (base * self.dt + t)
+                angle += self._wander_phase
+            d = np.sin(angle)
+            d *= cfg.lateral_wander
+            d += self._center
+            d_dot = np.cos(angle)
+            d_dot *= self._wander_speed
         else:
             d = self._center + np.zeros((m, 1))
             d_dot = np.zeros((m, self.n))
         if self._changing_any:
-            k = base + k
-            tau = np.clip((k - self._lc_start) * (self.dt / self._lc_duration), 0.0, 1.0)
-            tau2 = tau * tau
-            shift = (self.target_lane - self._origin) * self._lane_width
-            # Quintic minimum-jerk step 10t^3 - 15t^4 + 6t^5 and its time derivative.
-            d += shift * (tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0)))
-            d_dot += (30.0 * shift / self._lc_duration) * (tau2 * (1.0 - tau) ** 2)
+            if self._lc_dirty:
+                self._lc_constants()
+            # Quintic minimum-jerk step 10t^3 - 15t^4 + 6t^5 and its time derivative
+            # (30 shift / duration) tau^2 (1 - tau)^2, from the per-car tables.
+            profile = np.take(self._lc_table, (base + k) - self._lc_base, axis=1, mode="clip")
+            profile *= self._lc_gain
+            d += profile[0]
+            d_dot += profile[1]
         return d, d_dot
 
-    def _segment(self, m: int) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``m`` sub-steps with the held accelerations: s (unwrapped), d, speed, d_dot."""
-        _, t = self._sub_times(m)
-        v0, acc = self.speed, self._acc
-        # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
-        t_stop = np.where(acc < 0.0, v0, np.inf) / np.maximum(-acc, 1e-12)
-        te = np.minimum(t, t_stop)
-        v = v0 + acc * te
-        dist = te * (v0 + 0.5 * acc * te)
-        d, d_dot = self._lateral(m, self._step)
-        # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
-        inc = dist.copy()
-        inc[1:] -= dist[:-1]
-        s = self.s + np.cumsum(inc / (1.0 + self._kappa * d), axis=0)
-        self.s = s[-1] % self._loop
-        self.speed = v[-1]
-        self.d = d[-1]
-        self._step += m
-        return s, d, v, d_dot
+    def _segment(self, m: int, last: bool = False
+                 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float]:
+        """``m`` sub-steps with the held accelerations: s (unwrapped), d, speed, d_dot, and
+        a lower bound of the speeds (or -inf).
 
-    def _pose(self, s: FloatArray, d: FloatArray, v: FloatArray,
-              d_dot: FloatArray) -> TrafficSamples:
-        """World pose of ``(steps, n)`` Frenet states: one table lookup for all of them."""
+        ``last``: the caller takes the new state from the samples (skips updating it)."""
+        _, t, dist, times3 = self._sub_times(m)
+        v0, acc = self.speed, self._acc
+        base = self._step
+        # (acc, acc / 2, omega) * (t, t, t_abs) + (v0, v0, phase): the speed, the
+        # distance term v0 + acc t / 2 and the wander angle.
+        np.multiply(acc, 0.5, out=self._half_acc)
+        start3 = self._start3
+        start3[:2, 0] = v0
+        np.add(base * self.dt, t, out=times3[2])
+        rates = self._rate3 * times3
+        rates += start3
+        v, inner, angle = rates[0], rates[1], rates[2]
+        low = self._end_low = float(v[-1].min()) if self.n else np.inf
+        if low > 1e-6:
+            # No car reaches v = 0 within the segment: v0 + acc t_max > 1e-6 puts the
+            # stop time v0 / -acc beyond t_max by far more than rounding, so te = t.
+            te = t
+            known, known_low = self._speed_low
+            if known is not v0:
+                known_low = float(v0.min()) if self.n else np.inf
+            low = min(low, known_low)  # v is monotonic in t
+        else:
+            # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
+            t_stop = np.where(acc < 0.0, v0, np.inf) / np.maximum(-acc, 1e-12)
+            te = np.minimum(t, t_stop)
+            v = acc * te
+            v += v0
+            inner = self._half_acc * te
+            inner += v0
+            low = -np.inf
+        # dist[1:] = te * (v0 + 0.5 acc te); dist[0] stays 0, so inc = its differences.
+        np.multiply(te, inner, out=dist[1:])
+        inc = np.subtract(dist[1:], dist[:-1])
+        d, d_dot = self._lateral(m, base, angle)
+        # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
+        scale = self._kappa * d
+        scale += 1.0
+        inc /= scale
+        s = np.add.accumulate(inc, axis=0)
+        s += self.s
+        if not last:
+            self.s = s[-1] % self._loop
+            self.speed = v[-1]
+            self.d = d[-1]
+        self._step += m
+        return s, d, v, d_dot, low
+
+    def _pose(self, s: FloatArray, d: FloatArray, v: FloatArray, d_dot: FloatArray,
+              low: float | None = None) -> TrafficSamples:
+        """World pose of ``(steps, n)`` Frenet states: one table lookup for all of them.
+
+        ``low``: a lower bound of ``v``, if known."""
         s = s % self._loop
-        i, f = self._cell(s)
-        geo = self._geo[i] + f[..., None] * self._geo_step[i]  # (steps, n, 4)
-        tx, ty = geo[..., 2], geo[..., 3]
+        u = s * self._grid_scale
+        i = u.astype(np.intp)
+        if self._clamp_cell:  # s == L after rounding; else the table's extra column
+            np.minimum(i, self._grid_count - 1, out=i)
+        f = u - i
+        g = np.take(self._geo_t, i, axis=1)  # (12, steps, n): values, then steps
+        geo = g[6:] * f
+        geo += g[:6]  # x, y, tx, ty, ty, -tx
+        normal = geo[4:]
         # Right normal n = (ty, -tx); velocity = v * tangent + d_dot * n.
-        x = geo[..., 0] + d * ty
-        y = geo[..., 1] - d * tx
-        vx = v * tx + d_dot * ty
-        vy = v * ty - d_dot * tx
+        xy = d * normal
+        xy += geo[:2]
+        vxy = v * geo[2:4]
+        vxy += d_dot * normal
         # Heading of the motion; a (near) stopped car keeps pointing along its lane.
-        v_eff = np.maximum(v, 1.0)
-        heading = np.arctan2(v_eff * ty - d_dot * tx, v_eff * tx + d_dot * ty)
-        return TrafficSamples(s=s, d=d, speed=v, x=x, y=y, heading=heading, vx=vx, vy=vy)
+        if low is None:
+            low = float(v.min()) if v.size else np.inf
+        if low >= 1.0:
+            direction = vxy
+        else:
+            direction = np.maximum(v, 1.0) * geo[2:4]
+            direction += d_dot * normal
+        heading = np.arctan2(direction[1], direction[0])
+        return TrafficSamples(s=s, d=d, speed=v, x=xy[0], y=xy[1], heading=heading,
+                              vx=vxy[0], vy=vxy[1])
 
     def _update_pose(self, samples: TrafficSamples) -> None:
         self.s = samples.s[-1]
@@ -721,7 +892,9 @@ class HighwayTraffic:
         self.vx = samples.vx[-1]
         self.vy = samples.vy[-1]
         lane = (self.d * (1.0 / self._lane_width)).astype(np.int64)
-        self.lane = np.minimum(np.maximum(lane, 0), self._lanes - 1)
+        if self._clamp_lane:  # else d always lies within the road (see __init__)
+            lane = np.minimum(np.maximum(lane, 0), self._lanes - 1)
+        self.lane = lane
 
     # ------------------------------------------------------------------ decisions
     def _fill_objects(self, ego_s: float, ego_d: float, ego_speed: float) -> None:
@@ -733,14 +906,25 @@ class HighwayTraffic:
         self._d_all[n] = ego_d
         self._v_all[:n] = self.speed
         self._v_all[n] = ego_speed
+        changed = False
         if self._occ_dirty:  # only lane-change starts/ends and respawns move occupancy
             occ = self._occ_all[:n]
             np.equal(self._lane_ids, self._origin[:, None], out=occ)
             occ |= self._lane_ids == self.target_lane[:, None]
             self._penalty[:, 0, :n] = np.where(occ.T, 0.0, np.inf)
             self._center = (self._origin + 0.5) * self._lane_width
+            self._own_flat = self._origin * n + self._rows
+            self._adjacent_own = self._adjacent[:, self._origin]
             self._occ_dirty = False
-        self._occ_all[n], self._penalty[:, 0, n] = self._ego_occupancy(ego_d)
+            changed = True
+        half = 0.5 * self.config.ego_width
+        key = (math.floor((ego_d - half) / self._lane_width),
+               math.floor((ego_d + half) / self._lane_width))
+        if changed or key != self._ego_key:
+            self._ego_key = key
+            self._occ_all[n], self._penalty[:, 0, n] = self._ego_occupancy(ego_d)
+            np.copyto(self._penalty2[0], self._penalty)
+            np.add(self._penalty, self._self_inf, out=self._penalty2[1])
 
     def _recycle(self, rel: FloatArray) -> bool:
         """Respawn (a few of) the cars further than ``spawn_range`` from the ego.
@@ -780,98 +964,134 @@ class HighwayTraffic:
         """One decision instant: recycle, leader search, IDM, lane changes, rogue events.
 
         Per-lane quantities are ``(lanes, n)`` arrays (lane first: numpy's inner loops then
-        run over the cars, which is what makes the masked argmin cheap).
+        run over the cars, which is what makes the masked argmin cheap). The work goes
+        into preallocated buffers, in as few numpy calls as the arithmetic allows (with a
+        dozen cars each call costs far more than its arithmetic).
         """
         n = self.n
         if n == 0:
             return
         cfg = self.config
+        idm = cfg.idm
         ego_s, ego_d, ego_speed = self._ego
         step = self._step
         lanes = self._lanes
         rows = self._rows
-        if self._changing_any:  # finished lane changes free their origin lane
-            finished = self._lc_end <= step
+        if self._changing_any and step >= self._lc_next_end:
+            finished = self._lc_end <= step  # finished lane changes free their origin lane
             if finished.any():
                 self._origin = np.where(finished, self.target_lane, self._origin)
                 self._lc_start = np.where(finished, _NEVER, self._lc_start)
                 self._lc_end = np.where(finished, _IDLE, self._lc_end)
                 self._changing_any = bool((self._lc_end < _IDLE).any())
                 self._occ_dirty = True
+                self._lc_dirty = True
+            self._lc_next_end = int(self._lc_end.min())
         self._fill_objects(ego_s, ego_d, ego_speed)
         rel = self._relative(ego_s)
-        farthest = np.abs(rel).max()
+        tmp = self._idm_tmp
+        farthest = np.abs(rel, out=tmp).max()
         if farthest > self._range and self._recycle(rel[:n]):  # cars moved: rebuild
             self._fill_objects(ego_s, ego_d, ego_speed)
             rel = self._relative(ego_s)
-            farthest = np.abs(rel).max()
+            farthest = np.abs(rel, out=tmp).max()
         # delta[i, j]: s of object j minus s of car i. Unfolded differences of the folded
         # offsets from the ego are exact while every |rel| < L/4 (the usual case).
-        delta = rel - rel[:n, None]
+        delta2 = self._delta2
+        delta = delta2[0]
+        np.subtract(rel, rel[:n, None], out=delta)
         if farthest >= 0.25 * self._loop:
-            delta = (delta + self._half_loop) % self._loop - self._half_loop
-        kappa = self._curvature(self._s_all)
+            delta += self._half_loop
+            np.remainder(delta, self._loop, out=delta)
+            delta -= self._half_loop
+        np.negative(delta, out=delta2[1])
+        kappa = np.interp(self._s_all, self._kappa_grid, self._kappa_table)
         self._kappa = kappa[:n]
-        scale_all = 1.0 + kappa * self._d_all
+        scale_all = np.multiply(kappa, self._d_all, out=self._scale_all)
+        scale_all += 1.0
         half_len = self._half_len_all
 
-        # Nearest object ahead / behind in every lane: argmin over (lane, car, object), the
-        # objects not occupying a lane pushed to inf by the penalty. Ties at delta = 0
-        # count as behind; a car is neither ahead of nor behind itself.
-        penalty = self._penalty  # (lanes, 1, n + 1)
-        behind2 = np.where(delta <= 0.0, -delta, np.inf)
-        behind2[rows, rows] = np.inf
-        ahead = np.where(delta > 0.0, delta, np.inf) + penalty
-        behind = behind2 + penalty
-        li = ahead.argmin(axis=2)  # (lanes, n) object index
-        fi = behind.argmin(axis=2)
-        lead_ds = ahead[self._lane_col, rows, li]
-        follow_ds = behind[self._lane_col, rows, fi]
-        own_half = half_len[:n]
-        # IDM inputs go straight into buffers: rows = every lane, then the own lane(s).
-        gaps, leader_v = self._gaps, self._leader_v
-        lead_gap, lead_v = gaps[:lanes], leader_v[:lanes]
-        np.multiply(lead_ds, scale_all[:n], out=lead_gap)
-        lead_gap -= own_half + half_len[li]
+        # Nearest object ahead [0] / behind [1] in every lane: argmin over (side, lane,
+        # car, object) of delta [0] and -delta [1], the objects on the wrong side or not
+        # occupying a lane pushed to inf. Ties at delta = 0 count as behind; a car is
+        # neither ahead of nor behind itself (its own penalty, behind).
+        np.less_equal(delta2, self._invalid_cut, out=self._invalid)
+        np.copyto(delta2, np.inf, where=self._invalid)
+        search = np.add(delta2[:, None], self._penalty2, out=self._search)
+        idx3 = self._idx3
+        idx = search.argmin(axis=3, out=idx3[1:])  # (2, lanes, n) object index
+        idx_flat = idx + self._search_base
+        ds = np.take(search, idx_flat)  # (2, lanes, n): distance in s ahead, behind
+        li, fi = idx[0], idx[1]
+        # Bumper gaps along the follower's lane, into the IDM buffers: rows every lane
+        # ahead, the own lane(s), every lane behind; leader speeds likewise.
+        gap2 = self._ds_gap
+        np.multiply(ds, np.take(scale_all, idx3[::2]), out=gap2)
+        if self._hh_dirty:  # half lengths of car i plus object j, in the search layout
+            np.copyto(self._halves2, half_len + half_len[:n, None])
+            self._hh_dirty = False
+        gap2 -= np.take(self._halves2, idx_flat)
+        lead_gap, follow_gap = gap2[0], gap2[1]
+        gap_v = self._gap_v
+        lead_v = gap_v[1, :lanes]
         np.take(self._v_all, li, out=lead_v)
-        follow_gap = follow_ds * scale_all[fi] - (own_half + half_len[fi])
 
         # IDM in every lane (as if there) and with the leader over the occupied lane(s).
         if self._changing_any:  # nearest leader over both lanes of a changing car
-            own_gaps = lead_gap + penalty[:, 0, :n]  # inf in lanes the car is not in
+            own_gaps = lead_gap + self._penalty[:, 0, :n]  # inf in lanes the car is not in
             own = own_gaps.argmin(axis=0)
-            gaps[lanes] = own_gaps[own, rows]
+            gap_v[0, lanes] = own_gaps[own, rows]
+            gap_v[1, lanes] = lead_v[own, rows]
         else:
-            own = self._origin
-            gaps[lanes] = lead_gap[own, rows]
-        leader_v[lanes] = lead_v[own, rows]
-        acc_all = idm_core(self.speed, self.desired_speed, gaps, leader_v,
-                           self._a_all[:n], self._tsab_all[:n], cfg.idm)
-        acc_lane, acc = acc_all[:lanes], acc_all[lanes]
+            gap_v[:, lanes] = np.take(self._gap_v_flat, self._own_flat, axis=1)
+        # Per-object terms (the ego "wants" its current speed), then idm_core's arithmetic
+        # for every gap row at once: the car in every lane and in its own, and the new
+        # follower behind it in every lane (MOBIL's imposed braking), leader the car.
+        self._v0_all[n] = max(ego_speed, 0.1)
+        v_all = self._v_all
+        np.maximum(v_all, 0.0, out=tmp)
+        tmp /= self._v0_all
+        free = tmp ** idm.delta
+        np.subtract(1.0, free, out=free)
+        np.multiply(self._a_all, free, out=self._afree_all)
+        np.multiply(v_all, idm.T, out=self._vt_all)
+        par = self._idm_par
+        obj = self._obj[:5]
+        par[:, : lanes + 1] = obj[:, None, :n]
+        par[:, lanes + 1:] = obj[:, fi]
+        gap_v[1, lanes + 1:] = self.speed
+        acc_all = self._idm(par[0], par[1:], gap_v[1], gap_v[0],
+                            self._idm_out[: 2 * lanes + 1])
+        acc_lane, acc, imposed = acc_all[:lanes], acc_all[lanes], acc_all[lanes + 1:]
 
         # Lane-change wishes: clear +-clearance, MOBIL incentive and safety; sustained.
-        eligible = self.speed >= cfg.lane_change_min_speed
-        if self._changing_any:
-            eligible &= self._lc_end == _IDLE
-        if self._rogue_p > 0.0:
-            eligible &= step >= self._brake_until
-        clearance = cfg.lane_change_clearance
-        blocked = (lead_ds < clearance) | (follow_ds < clearance)
-        adjacent = self._adjacent[:, self._origin]
-        candidate = adjacent & ~blocked & (acc_lane - acc > cfg.lane_change_min_gain)
-        candidate &= eligible
+        # Eligible: not changing lanes (in _adj_idle), fast enough, not rogue-braking.
+        if self._lc_dirty:
+            self._lc_constants()
+        clear = ds >= cfg.lane_change_clearance  # (2, lanes, n): ahead, behind
+        candidate = np.subtract(acc_lane, acc) > cfg.lane_change_min_gain
+        candidate &= self._adj_idle
+        candidate &= clear[0]
+        candidate &= clear[1]
+        known, known_low = self._speed_low
+        if known is not self.speed or known_low < cfg.lane_change_min_speed:
+            candidate &= self.speed >= cfg.lane_change_min_speed
+        brake_until = self._brake_until  # as it was before this decision's rogue events
+        if step < self._brake_max:
+            candidate &= step >= brake_until
         start = None
         if candidate.any():
-            self._v0_all[n] = max(ego_speed, 0.1)  # the ego "wants" its current speed
-            imposed = idm_core(self._v_all[fi], self._v0_all[fi], follow_gap, self.speed,
-                               self._a_all[fi], self._tsab_all[fi], cfg.idm)
             limit = -cfg.lane_change_max_braking_imposed
             candidate &= (acc_lane >= limit) & ((imposed >= limit) | np.isinf(follow_gap))
             best = np.where(candidate, acc_lane, -np.inf).argmax(axis=0)
             want = np.where(candidate[best, rows], best, -1)
-            self._held = np.where((want >= 0) & (want == self._pending), self._held + 1, 0)
+            wish = want >= 0
+            wish &= want == self._pending
+            self._held = held = (self._held + 1) * wish
             self._pending = want
-            start = (want >= 0) & (self._held >= self._sustain_decisions)
+            self._wishes = True
+            # held >= sustain >= 1 implies a (sustained) wish.
+            start = held >= self._sustain_decisions if self._sustain_decisions else want >= 0
             if start.any():
                 # One start per target lane per decision (the lowest slot): two cars
                 # entering a lane at once did not see each other in their checks. The
@@ -879,20 +1099,46 @@ class HighwayTraffic:
                 conflict = (want[:, None] == want) & start & self._tri
                 start &= ~conflict.any(axis=1)
                 self._begin_change(start, want, cfg.lane_change_duration)
-        else:
+        elif self._wishes:
             self._pending.fill(-1)
             self._held.fill(0)
+            self._wishes = False
 
         if self._rogue_p > 0.0:
-            if start is not None:
-                eligible &= ~start
-            acc = self._rogue(acc, eligible, adjacent, blocked, lead_gap, follow_gap,
-                              lead_v, self._v_all[fi])
-        self._acc = acc
+            rogue_acc = self._rogue(acc, brake_until, self._adjacent_own, clear, lead_gap,
+                                    follow_gap, lead_v, fi)
+            if rogue_acc is not acc:
+                np.copyto(acc, rogue_acc)  # acc is self._acc: held until the next decision
+
+    def _idm(self, v: FloatArray, terms: FloatArray, leader_v: FloatArray,
+             gap: FloatArray, out: FloatArray) -> FloatArray:
+        """:func:`idm_core` from the per-object terms ``(vT, a_max * free, a_max,
+        2 sqrt(a_max b))`` of the followers ``v``: the same operations on the same values,
+        so the same bits, with the free-road term shared by every lane."""
+        idm = self.config.idm
+        vt, afree, a, tsab = terms
+        w = np.subtract(v, leader_v, out=out)
+        w *= v
+        w /= tsab  # closing term
+        if idm.floor_desired_gap:
+            w += vt
+            np.maximum(w, 0.0, out=w)
+            w += idm.s0
+        else:
+            w += idm.s0 + vt
+        w /= np.maximum(gap, _IDM_NOT_ZERO)
+        w *= w
+        w *= a
+        np.subtract(afree, w, out=w)
+        return np.maximum(w, -idm.max_braking, out=w)
 
     def _relative(self, ego_s: float) -> FloatArray:
         """s of every object (cars, then the ego) minus the ego's, folded to [-L/2, L/2)."""
-        return (self._s_all - ego_s + self._half_loop) % self._loop - self._half_loop
+        rel = np.subtract(self._s_all, ego_s, out=self._rel)
+        rel += self._half_loop
+        np.remainder(rel, self._loop, out=rel)
+        rel -= self._half_loop
+        return rel
 
     def _begin_change(self, start: NDArray[np.bool_], lane: IntArray, duration: float) -> None:
         steps = math.ceil(duration / self.dt - 1e-9)
@@ -904,10 +1150,12 @@ class HighwayTraffic:
         self._held = np.where(start, 0, self._held)
         self._changing_any = True
         self._occ_dirty = True
+        self._lc_dirty = True
+        self._lc_next_end = min(self._lc_next_end, self._step + steps)
 
-    def _rogue(self, acc: FloatArray, eligible: NDArray[np.bool_], adjacent: NDArray[np.bool_],
-               blocked: NDArray[np.bool_], lead_gap: FloatArray, follow_gap: FloatArray,
-               lead_v: FloatArray, follow_v: FloatArray) -> FloatArray:
+    def _rogue(self, acc: FloatArray, brake_until: IntArray, adjacent: NDArray[np.bool_],
+               clear: NDArray[np.bool_], lead_gap: FloatArray, follow_gap: FloatArray,
+               lead_v: FloatArray, fi: IntArray) -> FloatArray:
         """Rogue events: hard-braking episodes and cut-ins (see :class:`TrafficConfig`).
 
         A cut-in takes a gap the normal rule refuses (someone within the clearance) but
@@ -921,22 +1169,34 @@ class HighwayTraffic:
         step = self._step
         u = rng.random((2 + self._lanes, self.n))
         event = u[0] < self._rogue_p
-        brake = event & (u[1] < 0.5) & (step >= self._brake_until)
-        cut = event & (u[1] >= 0.5)
-        self._brake_until = np.where(brake, step + self._brake_steps, self._brake_until)
-        self._cut_in_until = np.where(cut, step + self._cut_in_window_steps, self._cut_in_until)
-        self.rogue_brake_count += int(brake.sum())
-        trying = eligible & (step < self._cut_in_until)
-        if trying.any():
-            v, delay, gap = self.speed, self._decision_dt, cfg.rogue_cut_in_gap
-            room = (lead_gap >= gap + _stopping_gap(v, lead_v, cfg, delay)) & (
-                follow_gap >= gap + _stopping_gap(follow_v, v, cfg, delay))
-            candidate = trying & adjacent & blocked & room
-            pick = np.where(candidate, u[2:], -1.0).argmax(axis=0)
-            go = candidate[pick, self._rows]
-            if go.any():
-                self._begin_change(go, pick, cfg.rogue_cut_in_duration)
-                self._cut_in_until = np.where(go, 0, self._cut_in_until)
-                self.rogue_cut_in_count += int(go.sum())
-        braking = step < self._brake_until
-        return np.where(braking, np.minimum(acc, -cfg.rogue_brake_decel), acc)
+        if event.any():
+            brake = event & (u[1] < 0.5) & (step >= self._brake_until)
+            cut = event & (u[1] >= 0.5)
+            self._brake_until = np.where(brake, step + self._brake_steps, self._brake_until)
+            self._cut_in_until = np.where(cut, step + self._cut_in_window_steps,
+                                          self._cut_in_until)
+            self.rogue_brake_count += int(brake.sum())
+            self._brake_max = max(self._brake_max, step + self._brake_steps)
+            self._cut_in_max = max(self._cut_in_max, step + self._cut_in_window_steps)
+        if step < self._cut_in_max:
+            # Eligible as for a lane change (those that just started one are not idle).
+            trying = (self.speed >= cfg.lane_change_min_speed) & (self._lc_end == _IDLE)
+            trying &= step >= brake_until
+            trying &= step < self._cut_in_until
+            if trying.any():
+                v, delay, gap = self.speed, self._decision_dt, cfg.rogue_cut_in_gap
+                follow_v = self._v_all[fi]
+                room = (lead_gap >= gap + _stopping_gap(v, lead_v, cfg, delay)) & (
+                    follow_gap >= gap + _stopping_gap(follow_v, v, cfg, delay))
+                blocked = ~(clear[0] & clear[1])
+                candidate = trying & adjacent & blocked & room
+                pick = np.where(candidate, u[2:], -1.0).argmax(axis=0)
+                go = candidate[pick, self._rows]
+                if go.any():
+                    self._begin_change(go, pick, cfg.rogue_cut_in_duration)
+                    self._cut_in_until = np.where(go, 0, self._cut_in_until)
+                    self.rogue_cut_in_count += int(go.sum())
+        if step < self._brake_max:
+            braking = step < self._brake_until
+            return np.where(braking, np.minimum(acc, -cfg.rogue_brake_decel), acc)
+        return acc

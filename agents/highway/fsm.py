@@ -1,0 +1,570 @@
+"""The seed's rule-based behavior layer: a four-mode finite state machine in two styles.
+
+Modes (:class:`Mode`)
+    * Launch: accelerate straight at the launch rate, steering muted; to Adapt above 40 mph.
+    * Adapt: follow the car ahead (the braking curve below); to Advance after ``patience_s``
+      blocked; to Cruise above 40 mph, centred (+-0.25 m) in a lane clear for 100 m.
+    * Advance: close in on the car ahead (1.05 x its speed, 1.10 Bold, at the gentle rate),
+      with the *active* distances and cool-downs (lane changes more often); to Cruise when
+      the lane ahead is open, the car centred and above 49 mph; the Conservative style goes
+      back to Adapt once a lane change begun in Advance is complete.
+    * Cruise: drive at the cruise speed with the long-range (strategic) lane choices; to
+      Adapt below 40 mph or when a car is detected ahead (inside the braking range).
+
+Styles (:class:`DrivingStyle`): Conservative uses the *calm* distances and cool-downs outside
+Advance, checks the far lane behind before merging into the middle lane and pushes forward
+from a tailgater (ghosting is perception's part); Bold ("Active") uses the short distances
+and cool-downs in every mode and closes in at 1.10 x in Advance.
+
+Rules, in the order applied each cycle (all modes but Launch, whose lane is fixed):
+
+1. Short range: within ``brake_range_m`` of the lead car, target
+   ``p(d) / 100 x lead speed`` with ``p(d) = (a / k) (1 - exp(-k d)) - c`` clipped to
+   [0, 100]; below 80 % flag a replan, brake at the maximum rate and allow no lane change.
+2. Mid range (tactical, lead within ``mid_range_m``, after ``tactical_cooldown_s``): change
+   to an adjacent lane with more room ahead than the ego lane and a safe gap behind; a
+   double change when the road is straight enough.
+3. Long range (strategic, after ``strategic_cooldown_s``): return to the open middle lane
+   when the ego lane is clear; move early to an open adjacent lane when a car shows up
+   between ``mid_range_m`` and ``early_change_max_gap_m`` ahead.
+
+Gaps
+    The world model's gaps are centre-to-centre s distances, which is also how the seed
+    measured every distance it quotes (car s minus sensed s), so all thresholds are used as
+    given, centre to centre. With cars about 5 m long, ``p(5 m) = 0`` means bumper to
+    bumper, and the 11 m minimum safety gap behind leaves about 6 m of clear road.
+    A car "behind" is safe when its gap exceeds
+    ``max(11, 3 s x (v_behind - v_ego) + 11)`` m: where it will be after 3 s at constant
+    speeds, plus the 11 m margin. A lane is "open" ahead when its car ahead is at least
+    ``open_lane_m`` away (``inf``: nobody sensed, the seed's empty lane).
+
+Clock: ``world.time``. Lane-change cool-downs count from the last lane change, and from the
+first cycle of the episode (the seed's timers start with the program). A lane change is
+complete when the ego is within ``lane_change_done_tolerance_m`` of the target lane's centre;
+no other lane change starts before that.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field, replace
+
+from agents.highway.behavior import (
+    GENTLE_ACCELERATION,
+    LAUNCH_ACCELERATION,
+    MAX_BRAKING,
+    NORMAL_ACCELERATION,
+    STEP,
+    BehaviorDecision,
+)
+from agents.highway.world_model import LaneView, WorldModel
+
+MPH = 0.44704  # m/s per mph
+MAX_SPEED_MPS = 0.4455 / STEP  # 22.275 m/s = 49.83 mph: the seed's largest distance increment
+SPEED_LIMIT_MPS = 50.0 * MPH  # 22.352 m/s: the simulator's overspeed limit
+
+
+class DrivingStyle(enum.Enum):
+    CONSERVATIVE = "conservative"
+    BOLD = "bold"
+
+
+class Mode(enum.Enum):
+    LAUNCH = "launch"
+    ADAPT = "adapt"
+    ADVANCE = "advance"
+    CRUISE = "cruise"
+
+
+@dataclass(frozen=True)
+class RangeProfile:
+    """The distances and cool-downs that the seed's ``Active`` flag shortens.
+
+    The calm profile is Conservative outside Advance; the active one is Advance (any style)
+    and Bold (every mode). Gaps are centre to centre (m); lane changes go to an adjacent
+    lane "inward" (nearer the middle lane) or "outward".
+
+    Attributes:
+        brake_range_m: the braking curve applies to a lead car closer than this.
+        mid_range_m: tactical lane changes start when the lead is closer than this.
+        tactical_cooldown_s: least time between lane changes, tactical rules.
+        strategic_cooldown_s: least time between lane changes, strategic rules.
+        outward_ahead_m: room needed ahead in an outer lane (moving out of the middle).
+        inward_ahead_m: room needed ahead in the middle lane (moving into it).
+        double_middle_ahead_m: room needed ahead in the lane crossed by a double change.
+        long_range_clear_m: the ego lane's room ahead needed to return to the middle lane.
+        early_change_max_gap_m: early lane changes for a lead between ``mid_range_m`` and
+            this.
+    """
+
+    brake_range_m: float
+    mid_range_m: float
+    tactical_cooldown_s: float
+    strategic_cooldown_s: float
+    outward_ahead_m: float
+    inward_ahead_m: float
+    double_middle_ahead_m: float
+    long_range_clear_m: float
+    early_change_max_gap_m: float
+
+
+CALM = RangeProfile(
+    brake_range_m=50.0,
+    mid_range_m=76.0,
+    tactical_cooldown_s=15.0,
+    strategic_cooldown_s=20.0,
+    outward_ahead_m=100.0,
+    inward_ahead_m=76.0,
+    double_middle_ahead_m=45.0,
+    long_range_clear_m=100.0,
+    early_change_max_gap_m=90.0,
+)
+ACTIVE = RangeProfile(
+    brake_range_m=30.0,
+    mid_range_m=35.0,
+    tactical_cooldown_s=4.6,
+    strategic_cooldown_s=5.0,
+    outward_ahead_m=25.0,
+    inward_ahead_m=25.0,
+    double_middle_ahead_m=20.0,
+    long_range_clear_m=35.0,
+    early_change_max_gap_m=50.0,
+)
+
+
+@dataclass(frozen=True)
+class FSMParameters:
+    """Every constant of the planner, with its unit. Defaults: the Conservative style.
+
+    Attributes:
+        calm, active: the distance and cool-down profiles (see :class:`RangeProfile`).
+        max_speed_mps: no target speed ever exceeds this (49.83 mph).
+        cruise_speed_mps: the target speed on an unobstructed road.
+        low_cruise_speed_mps: 40 mph: Launch -> Adapt above, Cruise -> Adapt below,
+            Adapt -> Cruise above.
+        high_cruise_speed_mps: 49 mph: Advance -> Cruise above.
+        normal_acceleration_mps2, launch_acceleration_mps2, max_braking_mps2,
+        gentle_acceleration_mps2: the seed's speed-change rates.
+        push_acceleration_mps2: rate used when pushed from behind (the seed reuses the
+            maximum braking figure as an acceleration).
+        patience_s: time blocked in Adapt before Advance.
+        adapt_clear_ahead_m: room ahead that ends "blocked" and allows Adapt -> Cruise.
+        open_lane_m: a lane whose car ahead is at least this far is "open" (inf: nobody).
+        centred_tolerance_m: "centred in a lane" for the mode transitions.
+        lane_change_done_tolerance_m: a lane change is complete within this of the centre.
+        advance_speed_factor: Advance's speed goal, x the lead car's speed.
+        adapt_after_advance_lane_change: go back to Adapt after a lane change in Advance.
+        brake_curve_gain_pct_per_m, brake_curve_decay_per_m, brake_curve_offset_pct: the
+            braking curve p(d) = (gain / decay) (1 - exp(-decay d)) - offset, in %.
+        hard_braking_fraction: below this fraction of the lead's speed: replan, brake hard.
+        push_from_behind_m: a car closer behind than this makes the ego speed up to the
+            mean of the lead's and the follower's speeds (0 disables).
+        safety_gap_min_m: the least gap to a car behind in a target lane.
+        safety_horizon_s: how far ahead the car behind is projected (constant speeds).
+        far_lane_ahead_m: merging into the middle lane, the far lane's car ahead must be
+            further than this (it could merge into the middle lane too).
+        check_far_lane_behind: merging into the middle lane, the far lane's car behind must
+            also be at a safe gap (Conservative).
+        double_target_clear_m: a double change needs this much room ahead and behind in the
+            target lane.
+        return_behind_m: least gap behind in the lane of a strategic change.
+        return_far_lane_clear_m: returning to the middle lane, the far lane must be clear by
+            this ahead and behind.
+        single_change_radius_m: lane changes need a road radius above this.
+        double_change_radius_m: double lane changes need a road radius above this.
+    """
+
+    calm: RangeProfile = CALM
+    active: RangeProfile = ACTIVE
+    max_speed_mps: float = MAX_SPEED_MPS
+    cruise_speed_mps: float = MAX_SPEED_MPS
+    low_cruise_speed_mps: float = 17.8816
+    high_cruise_speed_mps: float = 21.905
+    normal_acceleration_mps2: float = NORMAL_ACCELERATION
+    launch_acceleration_mps2: float = LAUNCH_ACCELERATION
+    max_braking_mps2: float = MAX_BRAKING
+    gentle_acceleration_mps2: float = GENTLE_ACCELERATION
+    push_acceleration_mps2: float = MAX_BRAKING
+    patience_s: float = 15.0
+    adapt_clear_ahead_m: float = 100.0
+    open_lane_m: float = math.inf
+    centred_tolerance_m: float = 0.25
+    lane_change_done_tolerance_m: float = 0.5
+    advance_speed_factor: float = 1.05
+    adapt_after_advance_lane_change: bool = True
+    brake_curve_gain_pct_per_m: float = 13.67303
+    brake_curve_decay_per_m: float = 0.08660915
+    brake_curve_offset_pct: float = 55.76378
+    hard_braking_fraction: float = 0.8
+    push_from_behind_m: float = 10.0
+    safety_gap_min_m: float = 11.0
+    safety_horizon_s: float = 3.0
+    far_lane_ahead_m: float = 13.0
+    check_far_lane_behind: bool = True
+    double_target_clear_m: float = 50.0
+    return_behind_m: float = 21.0
+    return_far_lane_clear_m: float = 50.0
+    single_change_radius_m: float = 500.0
+    double_change_radius_m: float = 3000.0
+    _brake_scale: float = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.max_speed_mps <= SPEED_LIMIT_MPS:
+            raise ValueError(f"max_speed_mps must be in (0, {SPEED_LIMIT_MPS}] m/s")
+        if not 0.0 < self.cruise_speed_mps <= self.max_speed_mps:
+            raise ValueError("cruise_speed_mps must be in (0, max_speed_mps]")
+        if self.brake_curve_decay_per_m <= 0.0:
+            raise ValueError("brake_curve_decay_per_m must be > 0")
+        object.__setattr__(
+            self, "_brake_scale", self.brake_curve_gain_pct_per_m / self.brake_curve_decay_per_m
+        )
+
+    @classmethod
+    def for_style(cls, style: DrivingStyle, **overrides: object) -> FSMParameters:
+        """The seed's constants for ``style``; keyword arguments replace single fields."""
+        base = cls()
+        if style is DrivingStyle.BOLD:
+            base = replace(
+                base,
+                calm=ACTIVE,
+                advance_speed_factor=1.10,
+                adapt_after_advance_lane_change=False,
+                check_far_lane_behind=False,
+                push_from_behind_m=0.0,
+            )
+        return replace(base, **overrides) if overrides else base
+
+    def braking_percent(self, gap_m: float) -> float:
+        """p(d): % of the lead car's speed to drive at, ``gap_m`` behind it (0 to 100)."""
+        p = self._brake_scale * (1.0 - math.exp(-self.brake_curve_decay_per_m * gap_m))
+        p -= self.brake_curve_offset_pct
+        return 0.0 if p < 0.0 else (100.0 if p > 100.0 else p)
+
+    def safety_gap_m(self, behind_speed_mps: float, ego_speed_mps: float) -> float:
+        """The gap a car behind in a target lane needs: its 3 s projection plus 11 m."""
+        g = self.safety_horizon_s * (behind_speed_mps - ego_speed_mps) + self.safety_gap_min_m
+        return g if g > self.safety_gap_min_m else self.safety_gap_min_m
+
+
+class FSMBehavior:
+    """The seed's finite state machine as a :class:`~agents.highway.behavior.BehaviorPolicy`.
+
+    Args:
+        style: picks the default parameters (``FSMParameters.for_style(style)``).
+        params: replace those defaults wholesale (``style`` then only labels the agent).
+    """
+
+    def __init__(
+        self,
+        style: DrivingStyle = DrivingStyle.CONSERVATIVE,
+        params: FSMParameters | None = None,
+    ) -> None:
+        self._style = style
+        self._params = params if params is not None else FSMParameters.for_style(style)
+        self.reset()
+
+    # ----------------------------------------------------------------- read-only state
+    @property
+    def style(self) -> DrivingStyle:
+        return self._style
+
+    @property
+    def params(self) -> FSMParameters:
+        return self._params
+
+    @property
+    def mode(self) -> Mode:
+        return self._mode
+
+    @property
+    def target_lane(self) -> int:
+        """The lane being driven to (-1 before the first cycle)."""
+        return self._target_lane
+
+    @property
+    def lane_change_in_progress(self) -> bool:
+        return self._changing
+
+    @property
+    def time_in_mode(self) -> float:
+        """s since the current mode was entered (as of the last cycle)."""
+        return self._now - self._mode_since
+
+    @property
+    def blocked_time(self) -> float:
+        """s blocked in Adapt (the patience timer; 0 in other modes)."""
+        return self._now - self._blocked_since if self._mode is Mode.ADAPT else 0.0
+
+    @property
+    def time_since_lane_change(self) -> float:
+        """s since the last lane change began (or since the first cycle)."""
+        return self._now - self._last_change_time
+
+    # ----------------------------------------------------------------------- policy
+    def reset(self) -> None:
+        self._mode = Mode.LAUNCH
+        self._started = False
+        self._now = 0.0
+        self._mode_since = 0.0
+        self._blocked_since = 0.0
+        self._last_change_time = 0.0
+        self._target_lane = -1
+        self._changing = False
+        self._change_began_in_advance = False
+
+    def _enter(self, mode: Mode, now: float) -> None:
+        self._mode = mode
+        self._mode_since = now
+        if mode is Mode.ADAPT:
+            self._blocked_since = now
+
+    def decide(self, world: WorldModel) -> BehaviorDecision:
+        p = self._params
+        now = world.time
+        if not self._started:
+            self._started = True
+            self._target_lane = world.ego_lane
+            self._mode_since = self._blocked_since = self._last_change_time = now
+        self._now = now
+        lanes = world.lanes
+        ego = world.ego_lane
+        v = world.ego_speed
+        width = world.lane_width
+        target = self._target_lane
+
+        # Lane change completion (and Conservative's Advance -> Adapt after it).
+        if self._changing and (
+            abs(world.ego_d - (target + 0.5) * width) <= p.lane_change_done_tolerance_m
+        ):
+            self._changing = False
+            if (
+                self._change_began_in_advance
+                and self._mode is Mode.ADVANCE
+                and p.adapt_after_advance_lane_change
+            ):
+                self._enter(Mode.ADAPT, now)
+
+        own = lanes[ego]
+        ahead = own.ahead_gap
+        centred = (not self._changing) and abs(
+            world.ego_d - (ego + 0.5) * width
+        ) <= p.centred_tolerance_m
+
+        # Mode transitions: at most one per cycle.
+        mode = self._mode
+        if mode is Mode.LAUNCH:
+            if v > p.low_cruise_speed_mps:
+                self._enter(Mode.ADAPT, now)
+        elif mode is Mode.ADAPT:
+            if ahead >= p.adapt_clear_ahead_m:
+                self._blocked_since = now  # not blocked: patience restarts
+                if v > p.low_cruise_speed_mps and centred:
+                    self._enter(Mode.CRUISE, now)
+            elif now - self._blocked_since > p.patience_s:
+                self._enter(Mode.ADVANCE, now)
+        elif mode is Mode.ADVANCE:
+            if ahead >= p.open_lane_m and centred and v > p.high_cruise_speed_mps:
+                self._enter(Mode.CRUISE, now)
+        elif v < p.low_cruise_speed_mps or ahead < p.calm.brake_range_m:  # Cruise
+            self._enter(Mode.ADAPT, now)
+        mode = self._mode
+        prof = p.active if mode is Mode.ADVANCE else p.calm
+
+        # The lead: the ego lane's car ahead, and while changing lanes also the cars ahead
+        # in the lanes up to the target one (whichever is nearest).
+        lead_gap = ahead
+        lead_speed = own.ahead_speed
+        if self._changing and target != ego:
+            step = 1 if target > ego else -1
+            for lane_index in range(ego + step, target + step, step):
+                lv = lanes[lane_index]
+                if lv.ahead_gap < lead_gap:
+                    lead_gap = lv.ahead_gap
+                    lead_speed = lv.ahead_speed
+
+        # Speed.
+        vmax = p.max_speed_mps
+        replan = False
+        if mode is Mode.LAUNCH:
+            goal = p.cruise_speed_mps
+            accel = p.launch_acceleration_mps2
+        elif mode is Mode.ADVANCE:
+            goal = (
+                p.advance_speed_factor * lead_speed if lead_gap != math.inf else p.cruise_speed_mps
+            )
+            accel = p.gentle_acceleration_mps2
+        else:
+            goal = p.cruise_speed_mps
+            accel = p.normal_acceleration_mps2
+        hard = False
+        if lead_gap < prof.brake_range_m:
+            fraction = p.braking_percent(lead_gap) * 0.01
+            goal = fraction * lead_speed
+            if fraction < p.hard_braking_fraction:
+                hard = replan = True
+                accel = p.max_braking_mps2
+        if goal > vmax:
+            goal = vmax
+        if not hard and own.behind_gap < p.push_from_behind_m and mode is not Mode.LAUNCH:
+            lead_v = lead_speed if lead_gap != math.inf else p.cruise_speed_mps
+            push = 0.5 * (lead_v + own.behind_speed)
+            if lead_gap < prof.brake_range_m and push > lead_speed:
+                push = lead_speed
+            if push > vmax:
+                push = vmax
+            if push > goal:
+                goal = push
+                accel = p.push_acceleration_mps2
+                replan = True
+
+        # Lane changes.
+        if (
+            mode is not Mode.LAUNCH
+            and not hard
+            and not self._changing
+            and world.road_radius > p.single_change_radius_m
+        ):
+            since = now - self._last_change_time
+            new = -1
+            if ahead < prof.mid_range_m and since > prof.tactical_cooldown_s:
+                new = self._tactical(
+                    lanes, world.lane_count, ego, ahead, v, prof, world.road_radius
+                )
+                if new >= 0:
+                    replan = True
+            if new < 0 and since > prof.strategic_cooldown_s:
+                new = self._strategic(lanes, world.lane_count, ego, ahead, v, prof)
+            if new >= 0:
+                self._target_lane = target = new
+                self._last_change_time = now
+                self._changing = True
+                self._change_began_in_advance = mode is Mode.ADVANCE
+
+        return BehaviorDecision(
+            target_lane=target,
+            target_speed=goal,
+            acceleration=accel,
+            replan=replan,
+            steering=mode is not Mode.LAUNCH,
+            mode=mode.value,
+        )
+
+    # ------------------------------------------------------------------ lane rules
+    def _safe_behind(self, lane: LaneView, v: float, least: float) -> bool:
+        """The lane's car behind is further than ``least`` and than its safety gap."""
+        p = self._params
+        gap = lane.behind_gap
+        if gap <= least:
+            return False
+        need = p.safety_horizon_s * (lane.behind_speed - v) + p.safety_gap_min_m
+        return gap > need
+
+    def _merge_ok(self, lanes: tuple[LaneView, ...], n: int, cur: int, t: int, v: float) -> bool:
+        """Merging from ``cur`` into ``t`` nearer the middle: the far lane's cars won't."""
+        p = self._params
+        f = 2 * t - cur
+        if f < 0 or f >= n:
+            return True
+        far = lanes[f]
+        if far.ahead_gap <= p.far_lane_ahead_m:
+            return False
+        return not p.check_far_lane_behind or self._safe_behind(far, v, p.safety_gap_min_m)
+
+    def _tactical(
+        self,
+        lanes: tuple[LaneView, ...],
+        n: int,
+        cur: int,
+        ahead: float,
+        v: float,
+        prof: RangeProfile,
+        radius: float,
+    ) -> int:
+        """Mid range: a lane around the slow car ahead, or -1."""
+        p = self._params
+        centre = (n - 1) * 0.5
+        off = abs(cur - centre)
+        least = p.safety_gap_min_m
+        a, b = cur - 1, cur + 1  # most room ahead first
+        if b < n and (a < 0 or lanes[b].ahead_gap > lanes[a].ahead_gap):
+            a, b = b, a
+        for t in (a, b):
+            if t < 0 or t >= n:
+                continue
+            lane = lanes[t]
+            room = lane.ahead_gap
+            if room <= ahead or not self._safe_behind(lane, v, least):
+                continue
+            if abs(t - centre) < off:  # into the middle lane
+                if room > prof.inward_ahead_m and self._merge_ok(lanes, n, cur, t, v):
+                    return t
+            elif room > prof.outward_ahead_m:
+                return t
+        if radius > p.double_change_radius_m:
+            a, b = cur - 2, cur + 2
+            if b < n and (a < 0 or lanes[b].ahead_gap > lanes[a].ahead_gap):
+                a, b = b, a
+            clear = p.double_target_clear_m
+            for t in (a, b):
+                if t < 0 or t >= n:
+                    continue
+                lane = lanes[t]
+                mid = lanes[(cur + t) // 2]
+                if (
+                    lane.ahead_gap > ahead
+                    and lane.ahead_gap > clear
+                    and self._safe_behind(lane, v, clear)
+                    and mid.ahead_gap > prof.double_middle_ahead_m
+                    and self._safe_behind(mid, v, least)
+                ):
+                    return t
+        return -1
+
+    def _strategic(
+        self,
+        lanes: tuple[LaneView, ...],
+        n: int,
+        cur: int,
+        ahead: float,
+        v: float,
+        prof: RangeProfile,
+    ) -> int:
+        """Long range: back to the open middle lane, or early to an open lane, or -1."""
+        p = self._params
+        centre = (n - 1) * 0.5
+        off = abs(cur - centre)
+        inward = cur + 1 if cur < centre else cur - 1
+        if off > 0.5 and ahead > prof.long_range_clear_m:  # return to the middle lane
+            lane = lanes[inward]
+            f = 2 * inward - cur
+            far_clear = p.return_far_lane_clear_m
+            if (
+                lane.ahead_gap >= p.open_lane_m
+                and self._safe_behind(lane, v, p.return_behind_m)
+                and (
+                    f < 0
+                    or f >= n
+                    or (lanes[f].ahead_gap > far_clear and lanes[f].behind_gap > far_clear)
+                )
+            ):
+                return inward
+        if prof.mid_range_m <= ahead < prof.early_change_max_gap_m:  # early change
+            if off > 0.5:  # the middle lane first
+                first, second = inward, 2 * cur - inward
+            else:  # from the middle: the lane with the most room first
+                first, second = cur - 1, cur + 1
+                if second < n and (first < 0 or lanes[second].ahead_gap > lanes[first].ahead_gap):
+                    first, second = second, first
+            for t in (first, second):
+                if t < 0 or t >= n:
+                    continue
+                lane = lanes[t]
+                if lane.ahead_gap < p.open_lane_m or not self._safe_behind(
+                    lane, v, p.return_behind_m
+                ):
+                    continue
+                if abs(t - centre) < off and not self._merge_ok(lanes, n, cur, t, v):
+                    continue
+                return t
+        return -1
