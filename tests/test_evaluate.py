@@ -4,39 +4,137 @@ from __future__ import annotations
 
 import csv
 import json
+import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import evaluate
+from agents.evaluation import TRACE_KEY, load_traces
+from agents.registry import AGENTS
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+OVAL = str(CONFIGS / "highway_oval.yaml")
+# The oval is 1.4 km of centre line; the middle lane (d = 6) is 2 pi 6 m longer.
+OVAL_MIDDLE_LANE_LAP = 1402.47 + 2 * math.pi * 6.0
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def test_evaluate_writes_episode_rows_and_summary(tmp_path, capsys):
+def test_evaluate_writes_episode_rows_summary_traces_and_plots(tmp_path, capsys):
     output = tmp_path / "run"
-    evaluate.main(["--config", str(CONFIGS / "highway_oval.yaml"), "--episodes", "2",
-                   "--workers", "2", "--output", str(output)])
+    result = evaluate.main(["--agents", "lane_keeping", "--config", OVAL, "--episodes", "2",
+                            "--workers", "2", "--output", str(output)])
     rows = list(csv.DictReader((output / "episodes.csv").open()))
     assert [row["seed"] for row in rows] == ["0", "1"]
     summary = json.loads((output / "summary.json").read_text())
     agent = summary["agents"][0]
     assert agent["agent"] == "lane_keeping" and agent["episodes"] == 2 and agent["laps"] == 2
-    # The oval is 1.4 km of centre line; the middle lane (d = 6) is 2 pi 6 m longer.
     for episode in summary["episodes"]:
+        assert TRACE_KEY not in episode  # traces go to traces.npz, not into the JSON
         assert episode["is_success"]
-        assert episode["distance"] == pytest.approx(1402.47 + 2 * 3.14159 * 6.0, rel=0.01)
+        assert episode["distance"] == pytest.approx(OVAL_MIDDLE_LANE_LAP, rel=0.01)
         assert episode["lap_times"][0] == pytest.approx(episode["time"], abs=0.1)
+    # One trace per episode: the reset state plus every step; distance only grows.
+    traces = load_traces(output / "traces.npz")
+    assert sorted(traces) == [("lane_keeping", 0), ("lane_keeping", 1)]
+    for episode in summary["episodes"]:
+        trace = traces[("lane_keeping", episode["seed"])]
+        assert len(trace) == episode["env_steps"] + 1
+        assert all(len(column) == len(trace) for column in trace.columns().values())
+        assert np.all(np.diff(trace.distance) >= 0.0) and trace.distance[0] == 0.0
+        assert trace.distance[-1] == pytest.approx(episode["distance"])
+        assert trace.time[-1] == pytest.approx(episode["time"])
+        assert trace.speed.max() * 2.2369362920544 < 50.0  # lane keeping stays legal
+    for name in ("profiles.png", "lap_times.png", "incident_map.png"):
+        data = (output / name).read_bytes()
+        assert data.startswith(PNG_MAGIC) and len(data) > 5000
+        assert output / name in result["files"]
     assert not list(output.glob(".*.tmp"))  # atomic writes leave no temporary files
     assert "lane_keeping" in capsys.readouterr().out
 
 
-def test_evaluate_rejects_bad_arguments(tmp_path):
+def test_endurance_drives_on_and_reports_miles_without_incident(tmp_path, capsys):
+    output = tmp_path / "endurance"
+    result = evaluate.main(["--agents", "lane_keeping", "--config", OVAL, "--endurance", "2",
+                            "--seeds", "5", "3", "--workers", "2", "--no-plots",
+                            "--output", str(output)])
+    episodes = json.loads((output / "summary.json").read_text())["episodes"]
+    assert [episode["seed"] for episode in episodes] == [5, 3]  # --seeds, in its order
+    for episode in episodes:
+        assert episode["laps"] == 2 and episode["termination_reason"] == "laps_completed"
+        assert episode["incident_total"] == 0
+        assert episode["longest_distance_without_incident"] == pytest.approx(
+            2 * OVAL_MIDDLE_LANE_LAP, rel=0.01)
+        assert episode["distance_without_incident"] == pytest.approx(episode["distance"])
+    assert not (output / "profiles.png").exists()
+    assert len(load_traces(output / "traces.npz")) == 2
+    out = capsys.readouterr().out
+    assert "276.53" in out and "endurance" in out
+    assert len(result["episodes"]) == 2
+
+
+def test_endurance_config_counts_collisions_and_allows_the_time():
+    assert evaluate.parse_args(["--output", "x"]).output == Path("x")
+    args = evaluate.parse_args(["--config", OVAL, "--endurance", "7"])
+    env_id, config = evaluate.env_settings(args)
+    assert env_id == "sdc_gym/HighwayLoop-v0" and config["map"] == "oval"
+    assert config["laps"] == 7 and config["terminate_on_collision"] is False
+    assert config["max_duration"] == 7 * 1000.0
+    assert args.seeds == [0]  # one episode per agent unless told otherwise
+    # Ordinary runs: laps from the command line, time enough for them.
+    _, config = evaluate.env_settings(evaluate.parse_args(["--laps", "3"]))
+    assert config["laps"] == 3 and config["max_duration"] == 3000.0
+    assert "terminate_on_collision" not in config
+
+
+def test_seed_options():
+    assert evaluate.parse_args([]).seeds == [0, 1, 2]
+    assert evaluate.parse_args(["--seed", "4", "--episodes", "2"]).seeds == [4, 5]
+    assert evaluate.parse_args(["--seeds", "3", "5", "8", "5"]).seeds == [3, 5, 8]
+
+
+def test_default_agents_are_registered():
+    assert evaluate.DEFAULT_AGENTS and set(evaluate.DEFAULT_AGENTS) <= set(AGENTS)
+    preferred = [name for name in ("fsm_conservative", "fsm_bold") if name in AGENTS]
+    assert list(evaluate.DEFAULT_AGENTS) == (preferred or sorted(AGENTS))
+    assert evaluate.parse_args([]).agents == list(evaluate.DEFAULT_AGENTS)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--agents", "nobody"], "lane_keeping"),  # the valid agents are listed
+    (["--episodes", "0"], "--episodes must be >= 1"),
+    (["--endurance", "0"], "--endurance must be >= 1"),
+    (["--seeds", "1", "2", "--seed", "3"], "do not combine"),
+    (["--seeds", "1", "--episodes", "3"], "do not combine"),
+    (["--endurance", "3", "--laps", "2"], "drop --laps"),
+    (["--output", ""], "empty string"),
+    (["--output", "  "], "empty string"),
+])
+def test_evaluate_rejects_bad_arguments(argv, message, capsys, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # should a check fail, nothing lands in the checkout
     with pytest.raises(SystemExit):
-        evaluate.main(["--agents", "nobody"])
-    with pytest.raises(SystemExit):
-        evaluate.main(["--episodes", "0"])
+        evaluate.main(argv)
+    assert message in capsys.readouterr().err
+
+
+def test_evaluate_rejects_bad_files(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
     bad = tmp_path / "bad.yaml"
     bad.write_text("environment: x\n")
     with pytest.raises(SystemExit, match="expected a mapping"):
         evaluate.main(["--config", str(bad)])
+    broken = tmp_path / "broken.yaml"
+    broken.write_text("config: [unclosed\n")
+    with pytest.raises(SystemExit, match="not valid YAML"):
+        evaluate.main(["--config", str(broken)])
+    with pytest.raises(SystemExit, match="no such config file"):
+        evaluate.main(["--config", str(tmp_path / "missing.yaml")])
+    unknown = tmp_path / "unknown.yaml"
+    unknown.write_text("config:\n  no_such_key: 1\n")
+    with pytest.raises(SystemExit, match="no_such_key"):
+        evaluate.main(["--config", str(unknown), "--output", str(tmp_path / "out")])
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    with pytest.raises(SystemExit):
+        evaluate.main(["--output", str(a_file)])
