@@ -49,11 +49,9 @@ from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
-PREFERRED_AGENTS = ("fsm_conservative", "fsm_bold")
-DEFAULT_AGENTS: tuple[str, ...] = (
-    tuple(name for name in PREFERRED_AGENTS if name in AGENTS) or tuple(sorted(AGENTS)))
-"""Agents compared when ``--agents`` is not given: the FSM planners when registered, else
-every registered agent."""
+DEFAULT_AGENTS: tuple[str, ...] = ("fsm_conservative", "fsm_bold", "lane_keeping")
+"""Agents compared when ``--agents`` is not given: the seed's planner in both styles and
+the lane-keeping baseline."""
 DEFAULT_EPISODES = 3
 SECONDS_PER_LAP = 1000.0
 """``max_duration`` per lap when the config does not set one (endurance and multi-lap runs

@@ -12,6 +12,8 @@ from typing import Any, Protocol
 
 import gymnasium as gym
 
+from agents.highway.fsm import DrivingStyle
+from agents.highway.layered_agent import fsm_agent
 from agents.lane_keeping import LaneKeepingDriver
 
 
@@ -27,6 +29,11 @@ AgentFactory = Callable[[gym.Env], Agent]
 
 AGENTS: dict[str, AgentFactory] = {
     "lane_keeping": lambda env: LaneKeepingDriver(env.unwrapped.road),
+    "fsm_conservative": lambda env: fsm_agent(env, DrivingStyle.CONSERVATIVE),
+    "fsm_bold": lambda env: fsm_agent(env, DrivingStyle.BOLD),
+    # With Kalman tracking of every car (for the env's sensor noise).
+    "fsm_conservative_kf": lambda env: fsm_agent(env, DrivingStyle.CONSERVATIVE, tracking=True),
+    "fsm_bold_kf": lambda env: fsm_agent(env, DrivingStyle.BOLD, tracking=True),
 }
 
 

@@ -94,10 +94,9 @@ def test_seed_options():
     assert evaluate.parse_args(["--seeds", "3", "5", "8", "5"]).seeds == [3, 5, 8]
 
 
-def test_default_agents_are_registered():
-    assert evaluate.DEFAULT_AGENTS and set(evaluate.DEFAULT_AGENTS) <= set(AGENTS)
-    preferred = [name for name in ("fsm_conservative", "fsm_bold") if name in AGENTS]
-    assert list(evaluate.DEFAULT_AGENTS) == (preferred or sorted(AGENTS))
+def test_default_comparison_is_the_fsm_in_both_styles_and_the_baseline():
+    assert set(evaluate.DEFAULT_AGENTS) <= set(AGENTS)
+    assert list(evaluate.DEFAULT_AGENTS) == ["fsm_conservative", "fsm_bold", "lane_keeping"]
     assert evaluate.parse_args([]).agents == list(evaluate.DEFAULT_AGENTS)
 
 

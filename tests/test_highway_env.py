@@ -86,13 +86,27 @@ def test_latency_keeps_the_old_path_until_the_new_one_arrives():
     assert np.allclose(obs["ego"][:2], path[1], atol=1e-3)
 
 
-def test_new_path_drops_points_behind_the_car():
+def test_new_path_drops_points_behind_the_car_and_the_one_it_stands_on():
     env = make(steps_per_action=3, latency_steps=0, traffic={"car_count": 0})
     env.reset(seed=0)
     path = straight_path(env, 15.0, 20)
     env.step(path)  # the car is on path[2]
-    obs, *_ = env.step(path)  # resend the whole path: points before path[2] are dropped
-    assert np.allclose(obs["ego"][:2], path[4], atol=1e-3)
+    # Resend the whole path: path[0..2] are dropped (the car stands on path[2]), so the
+    # car moves on to path[3..5] at full speed, with no frame standing still.
+    obs, *_ = env.step(path)
+    assert np.allclose(obs["ego"][:2], path[5], atol=1e-3)
+    assert obs["ego"][5] == pytest.approx(15.0, rel=0.01)
+
+
+def test_lock_step_observation_shows_the_path_just_applied():
+    env = make(steps_per_action=3, traffic={"car_count": 0})  # latency = 3 frames
+    env.reset(seed=0)
+    path = straight_path(env, 15.0, 20)
+    obs, *_ = env.step(path)  # arrives after the 3 frames, before the observation
+    assert obs["previous_path_count"] == 20
+    obs, *_ = env.step(path)  # frames 4-6 consume path[0..2]; the resend drops them
+    assert np.allclose(obs["ego"][:2], path[2], atol=1e-3)
+    assert obs["previous_path_count"] == 17
 
 
 def test_padding_by_repeating_the_last_point_and_short_paths():

@@ -24,6 +24,7 @@ PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
 ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
 EGO_LENGTH_M = 4.7
 EGO_WIDTH_M = 1.9
+ON_POINT_M = 0.005  # m: a new path's point this close to the car is the one it stands on
 
 
 def _dataclass_defaults(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -85,8 +86,12 @@ class HighwayLoopEnv(gym.Env):
     raises ``ValueError`` naming the point. An empty path is allowed: the car stops dead.
 
     When a path arrives, points before the one nearest the car are dropped (the original's
-    rule). It takes effect ``latency_steps`` physics frames after ``step`` is called; until
-    then the car keeps consuming the old path.
+    rule), and that one too if the car already stands on it (within 5 mm), so a planner
+    that resends its consumed points never stalls the car. A path takes effect
+    ``latency_steps`` physics frames after ``step`` is called; until then the car keeps
+    consuming the old path. With the default ``latency_steps = steps_per_action`` it
+    arrives at the end of the step, just before the observation (the original's
+    lock-step: telemetry, reply ``latency`` frames later, next telemetry).
 
     ## Observation Space
 
@@ -352,11 +357,22 @@ class HighwayLoopEnv(gym.Env):
         return s[:-1], d[:-1]
 
     def _apply_path(self, path: NDArray[np.float64]) -> None:
-        """Adopt a newly arrived path, dropping the points before the one nearest the car."""
+        """Adopt a newly arrived path, dropping the points before the one nearest the car.
+
+        A nearest point the car already stands on (within ``ON_POINT_M``: more than the
+        7-significant-digit rounding of echoed points, less than the seed's smallest 9 mm
+        step) is dropped too:
+        the car consumed it, and placing the car on it again would be a frame at zero
+        speed. That happens every cycle with latency, because a planner's path starts with
+        the points the car consumed while the reply was on its way.
+        """
         if len(path) == 0:
             self._path, self._path_start = self._empty_path, 0
             return
-        nearest = int(np.argmin(np.sum((path - self._xy) ** 2, axis=1)))
+        distance_sq = np.sum((path - self._xy) ** 2, axis=1)
+        nearest = int(np.argmin(distance_sq))
+        if distance_sq[nearest] <= ON_POINT_M**2:
+            nearest += 1
         self._path, self._path_start = path, nearest
 
     def _drive_ego(self, frames: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
@@ -386,6 +402,10 @@ class HighwayLoopEnv(gym.Env):
             yaw[done + moves:done + horizon] = self._yaw
             done += horizon
             self._frame += horizon
+        # A path due now arrives before the observation (the original's lock-step: the
+        # reply is applied, then the next telemetry goes out).
+        while self._pending and self._pending[0][0] <= self._frame:
+            self._apply_path(self._pending.popleft()[1])
         previous = np.vstack([start[None, :], xy])
         speed = np.hypot(*np.diff(previous, axis=0).T) / PHYSICS_DT
         return xy, yaw, speed
