@@ -212,9 +212,11 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
 def _lane_change_run(ego_offset: list[float], seconds: float,
                      sustain: float = 1.0) -> list[int]:
     """Car 0 in lane 0 behind a slow car 1; the ego in lane 1 holds ``ego_offset[k]`` metres
-    (in s) from car 0 during decision interval k. Returns car 0's target lane per decision."""
+    (in s) from car 0 during decision interval k (0.1 s: decisions every 5 frames here).
+    Returns car 0's target lane per decision."""
     road = highway()
-    config = TrafficConfig(lane_change_max_braking_imposed=np.inf, lane_change_sustain=sustain)
+    config = TrafficConfig(lane_change_max_braking_imposed=np.inf, lane_change_sustain=sustain,
+                           decision_period=5)
     traffic = HighwayTraffic(road, config)
     s0 = 3000.0
     traffic.reset_to(np.random.default_rng(0), s0 + ego_offset[0], 6.0, 20.0,

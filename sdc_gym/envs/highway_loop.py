@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 from collections import deque
 from typing import Any, ClassVar
 
@@ -323,38 +324,48 @@ class HighwayLoopEnv(gym.Env):
         if len(points) > self.path_points:
             raise ValueError(f"path has {len(points)} points; at most path_points = "
                              f"{self.path_points} (raise the 'path_points' config key)")
+        # One test covers NaN, inf and out-of-bounds (NaN compares false); the message
+        # is worked out only when it fails.
+        if not ((points >= self._action_low) & (points <= self._action_high)).all():
+            self._raise_bad_point(points)
+        # Trailing repeats of the last point are padding (see the class docstring).
+        if len(points) > 1 and (points[-1] == points[-2]).all():
+            differs = np.flatnonzero(np.any(points != points[-1], axis=1))
+            points = points[: (int(differs[-1]) + 2 if len(differs) else 1)]
+        return points
+
+    def _raise_bad_point(self, points: NDArray[np.float64]) -> None:
         finite = np.isfinite(points).all(axis=1)
         if not finite.all():
             bad = int(np.flatnonzero(~finite)[0])
             raise ValueError(f"path point {bad} is not finite: {points[bad].tolist()} "
                              "(NaN/inf are not allowed; send fewer points or repeat the last)")
         outside = ((points < self._action_low) | (points > self._action_high)).any(axis=1)
-        if outside.any():
-            bad = int(np.flatnonzero(outside)[0])
-            raise ValueError(
-                f"path point {bad} {points[bad].tolist()} is outside the action bounds "
-                f"x in [{self._action_low[0]:.1f}, {self._action_high[0]:.1f}], "
-                f"y in [{self._action_low[1]:.1f}, {self._action_high[1]:.1f}]")
-        # Trailing repeats of the last point are padding (see the class docstring).
-        differs = np.flatnonzero(np.any(points != points[-1], axis=1))
-        last_real = int(differs[-1]) + 1 if len(differs) else 0
-        return points[: last_real + 1]
+        bad = int(np.flatnonzero(outside)[0])
+        raise ValueError(
+            f"path point {bad} {points[bad].tolist()} is outside the action bounds "
+            f"x in [{self._action_low[0]:.1f}, {self._action_high[0]:.1f}], "
+            f"y in [{self._action_low[1]:.1f}, {self._action_high[1]:.1f}]")
 
     def _project(self, xy: NDArray[np.float64],
                  speed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Frenet s, d of the ego's frames; the path's end point rides in the same call."""
-        guess = self._s + np.cumsum(speed) * PHYSICS_DT
+        points = xy.tolist()
+        guesses = []
+        guess = self._s
+        for frame_speed in speed.tolist():  # warm start: last s plus the distance driven
+            guess += frame_speed * PHYSICS_DT
+            guesses.append(guess)
         remaining = self._remaining_path()
-        if len(remaining) == 0:
-            self._end_sd = (0.0, 0.0)
-            return self.road.reference.to_frenet(xy, s_guess=guess)
-        end = remaining[-1]
-        # Warm start: the path's end lies about its straight-line distance ahead.
-        end_guess = guess[-1] + float(np.hypot(*(end - xy[-1])))
-        s, d = self.road.reference.to_frenet(np.vstack([xy, end]),
-                                             s_guess=np.append(guess, end_guess))
-        self._end_sd = (float(s[-1]), float(d[-1]))
-        return s[:-1], d[:-1]
+        if len(remaining):
+            end = remaining[-1].tolist()
+            # The path's end lies about its straight-line distance ahead of the car.
+            guesses.append(guess + math.hypot(end[0] - points[-1][0], end[1] - points[-1][1]))
+            points.append(end)
+        s, d = self.road.reference.project_few(points, guesses)
+        frames = len(xy)
+        self._end_sd = (s[frames], d[frames]) if len(remaining) else (0.0, 0.0)
+        return np.array(s[:frames]), np.array(d[:frames])
 
     def _apply_path(self, path: NDArray[np.float64]) -> None:
         """Adopt a newly arrived path, dropping the points before the one nearest the car.
@@ -438,7 +449,8 @@ class HighwayLoopEnv(gym.Env):
 
     def _info(self, incidents: list[Incident], *, final: bool) -> dict[str, Any]:
         info: dict[str, Any] = dict(self.metrics.step_info())
-        info["lane"] = int(self.road.lane_of(self._d))
+        lane = math.floor(self._d / self.road.lane_width)
+        info["lane"] = min(max(lane, -1), self.road.lane_count)  # as HighwayMap.lane_of
         info["new_incidents"] = [incident.kind for incident in incidents]
         info["is_success"] = self.metrics.laps_completed >= self.config["laps"]
         info["termination_reason"] = self._done_reason if final else ""

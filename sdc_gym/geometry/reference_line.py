@@ -292,35 +292,56 @@ class ReferenceLine:
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """:meth:`_newton` for a few points, one at a time in Python complex arithmetic."""
         shape = points.shape[:-1]
-        flat_points = points.reshape(-1, 2).tolist()
         flat_u0 = np.broadcast_to(self._param(s0), shape).ravel().tolist()
-        rows, step_u, inverse = self._coef_rows, self._knot_step, self._inverse_step
-        last, total, scale = self._segments - 1, self._total_param, self._param_scale
-        s_out, d_out, moved_out = [], [], []
-        for (x, y), u0 in zip(flat_points, flat_u0, strict=True):
-            p = complex(x, y)
-            u = u0
-            for _ in range(_NEWTON_ITERATIONS):
-                i = min(int(u * inverse), last)
-                a, b, c, d0, a3, b2, a6 = rows[i]
-                t = u - i * step_u
-                offset = ((a * t + b) * t + c) * t + d0 - p
-                velocity = (a3 * t + b2) * t + c
-                conj_velocity = velocity.conjugate()
-                f = (offset * conj_velocity).real
-                fp = (velocity * conj_velocity).real + (
-                    offset * (a6 * t + b2).conjugate()).real
-                step = max(min(f / fp, _MAX_NEWTON_STEP_M), -_MAX_NEWTON_STEP_M)
-                u = (u - step) % total
-                if abs(step) < _NEWTON_TOLERANCE_M:
-                    break
-            i = min(int(u * inverse), last)
-            a, b, c, d0, a3, b2, _ = rows[i]
-            t = u - i * step_u
-            velocity = (a3 * t + b2) * t + c
-            point = ((a * t + b) * t + c) * t + d0
-            d_out.append(((p - point) * (1j * velocity.conjugate())).real / abs(velocity))
-            s_out.append(u / scale)
-            moved_out.append(((u - u0 + 0.5 * total) % total - 0.5 * total) / scale)
+        scale = self._param_scale
+        results = [self._newton_point(x, y, u0 / scale)
+                   for (x, y), u0 in zip(points.reshape(-1, 2).tolist(), flat_u0, strict=True)]
+        s_out, d_out, moved_out = zip(*results, strict=True) if results else ((), (), ())
         return (np.array(s_out).reshape(shape), np.array(d_out).reshape(shape),
                 np.array(moved_out).reshape(shape))
+
+    def project_few(self, points: list[list[float]],
+                    s_guesses: list[float]) -> tuple[list[float], list[float]]:
+        """:meth:`to_frenet` for a handful of points given and returned as Python lists.
+
+        The env projects the ego's few frames per step this way: with lists in and out
+        there is no numpy call at all on the common path.
+        """
+        s_out: list[float] = []
+        d_out: list[float] = []
+        for (x, y), guess in zip(points, s_guesses, strict=True):
+            s, d, moved = self._newton_point(x, y, guess)
+            if abs(moved) > _LOCAL_SEARCH_TRUST_M or abs(d) > _LOCAL_SEARCH_TRUST_M:
+                s, d, _ = self._newton_point(x, y, float(self.nearest_sample_s((x, y))))
+            s_out.append(s)
+            d_out.append(d)
+        return s_out, d_out
+
+    def _newton_point(self, x: float, y: float, s0: float) -> tuple[float, float, float]:
+        """One point's Newton projection from ``s0``: s, d, and how far s moved."""
+        rows, step_u, inverse = self._coef_rows, self._knot_step, self._inverse_step
+        last, total, scale = self._segments - 1, self._total_param, self._param_scale
+        p = complex(x, y)
+        u0 = (s0 % self.length) * scale
+        u = u0
+        for _ in range(_NEWTON_ITERATIONS):
+            i = min(int(u * inverse), last)
+            a, b, c, d0, a3, b2, a6 = rows[i]
+            t = u - i * step_u
+            offset = ((a * t + b) * t + c) * t + d0 - p
+            velocity = (a3 * t + b2) * t + c
+            conj_velocity = velocity.conjugate()
+            f = (offset * conj_velocity).real
+            fp = (velocity * conj_velocity).real + (offset * (a6 * t + b2).conjugate()).real
+            step = max(min(f / fp, _MAX_NEWTON_STEP_M), -_MAX_NEWTON_STEP_M)
+            u = (u - step) % total
+            if abs(step) < _NEWTON_TOLERANCE_M:
+                break
+        i = min(int(u * inverse), last)
+        a, b, c, d0, a3, b2, _ = rows[i]
+        t = u - i * step_u
+        velocity = (a3 * t + b2) * t + c
+        point = ((a * t + b) * t + c) * t + d0
+        d = ((p - point) * (1j * velocity.conjugate())).real / abs(velocity)
+        moved = ((u - u0 + 0.5 * total) % total - 0.5 * total) / scale
+        return u / scale, d, moved
