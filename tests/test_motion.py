@@ -312,3 +312,43 @@ def test_parameters_are_checked():
         MotionParameters(steering_gate_lane_change=0.01)
     with pytest.raises(ValueError):
         MotionParameters(frames_per_cycle=0)
+
+
+# ---------------------------------------------------------------------- (7) cost-saving paths
+@pytest.mark.parametrize("map_name", ["default", "oval"])
+def test_geometry_agrees_with_the_reference_lines_vectorized_evaluation(map_name):
+    road = make_env(map=map_name).unwrapped.road
+    reference = road.reference
+    planner = SeedMotionPlanner(road)
+    rng = np.random.default_rng(0)
+    for _ in range(500):
+        k = int(rng.integers(1, 6))
+        start = float(rng.uniform(-5.0, reference.length + 5.0))  # across the seam too
+        s_pred = [start + 0.4 * j + float(rng.normal(0.0, 0.01)) for j in range(k)]
+        distance = float(rng.uniform(12.5, 40.0))
+        aim_d = float(rng.choice([2.0, 6.0, 10.0])) + float(rng.normal(0.0, 0.3))
+        xy, curvature = reference.to_xy_and_curvature(
+            np.array(s_pred + s_pred + [s + distance for s in s_pred]),
+            np.array([0.0] * k + [1.0] * k + [aim_d] * k))
+        frames, aims, aim_curvature = planner._geometry(s_pred, distance, aim_d)
+        expected = np.column_stack([xy[:k], xy[k:2 * k] - xy[:k], curvature[:k]])
+        np.testing.assert_allclose(np.array(frames), expected, rtol=0, atol=1e-9)
+        np.testing.assert_allclose([(a.real, a.imag) for a in aims], xy[2 * k:], atol=1e-9)
+        assert aim_curvature == pytest.approx(curvature[-1], abs=1e-12)
+
+
+def test_a_queue_longer_than_its_buffer_grows_it():
+    env = make_env(path_points=1500)
+    obs, _ = env.reset(seed=0)
+    planner = SeedMotionPlanner(env.unwrapped.road,
+                                MotionParameters.for_env(env, path_length=1500))
+    previous = None
+    for step in range(5):
+        path = planner.plan(obs, scripted_decisions(step * 0.06, planner))
+        assert path.shape == (1500, 2)
+        np.testing.assert_array_equal(planner.queue[:, :2], path)
+        if previous is not None:  # the path continues the previous one exactly
+            np.testing.assert_array_equal(path[:len(previous) - planner.consumed],
+                                          previous[planner.consumed:])
+        previous = path
+        obs, *_ = env.step(path)

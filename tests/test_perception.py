@@ -412,3 +412,34 @@ def test_env_faulty_sensor_rows_near_the_seam_are_repaired():
         check_against_traffic(env, perception.perceive(obs, step * 0.06))
     assert faults > 20  # the quirk really happened
     env.close()
+
+
+def test_lane_views_and_world_models_are_ordinary_frozen_dataclasses():
+    world = Perception(ROAD, PerceptionParameters(ghosting=True)).perceive(
+        observation(ROAD, 500.0, 6.0, [(1, 510.0, 6.0, 20.0), (2, 490.0, 2.0, 18.0)]), 0.0)
+    rebuilt = WorldModel(**{f.name: getattr(world, f.name) for f in dataclasses.fields(world)})
+    assert world == rebuilt and hash(world) == hash(rebuilt) and repr(world) == repr(rebuilt)
+    for view in world.lanes:
+        again = type(view)(**dataclasses.asdict(view))
+        assert view == again and hash(view) == hash(again) and repr(view) == repr(again)
+    assert world.lanes[1].ahead_id == 1 and world.lanes[0].behind_id == 2
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        world.ego_s = 0.0  # type: ignore[misc]
+
+
+def test_fast_constructors_fall_back_to_the_class_when_it_has_its_own_init_logic():
+    from agents.highway.perception import _fast_constructor
+
+    @dataclasses.dataclass(frozen=True)
+    class Checked:
+        value: float
+
+        def __post_init__(self) -> None:
+            if self.value < 0:
+                raise ValueError("negative")
+
+    assert _fast_constructor(Checked) is Checked
+    make = _fast_constructor(TrackedCar)
+    car = make(1, 2.0, 3.0, 4.0, 5.0, 0, 6.0)
+    assert car == TrackedCar(1, 2.0, 3.0, 4.0, 5.0, 0, 6.0) and type(car) is TrackedCar
+
