@@ -2,10 +2,9 @@
 
 from sdc_gym.metrics.driving_metrics import (
     INCIDENT_KINDS,
-    MPS_PER_MPH,
     DrivingMetrics,
     Incident,
     IncidentRules,
 )
 
-__all__ = ["INCIDENT_KINDS", "MPS_PER_MPH", "DrivingMetrics", "Incident", "IncidentRules"]
+__all__ = ["INCIDENT_KINDS", "DrivingMetrics", "Incident", "IncidentRules"]

@@ -78,11 +78,10 @@ from typing import Any
 
 import numpy as np
 
+from sdc_gym.units import MPS_TO_MPH
+
 INCIDENT_KINDS: tuple[str, ...] = ("collision", "acceleration", "jerk", "speed", "lane", "off_road")
 """Every incident kind, in the order incidents of the same step are reported."""
-
-MPS_PER_MPH = 0.44704
-"""Metres per second in one mile per hour (exact, by definition of the mile)."""
 
 _KIND_ORDER = {kind: i for i, kind in enumerate(INCIDENT_KINDS)}
 _INFO_INCIDENT_KEYS = tuple(f"incidents_{kind}" for kind in INCIDENT_KINDS)
@@ -638,7 +637,7 @@ class DrivingMetrics:
             "distance": self._distance,
             "time": self.time,
             "mean_speed": self.mean_speed,
-            "mean_speed_mph": self.mean_speed / MPS_PER_MPH,
+            "mean_speed_mph": self.mean_speed * MPS_TO_MPH,
             "max_speed": self._max_speed,
             "distance_without_incident": self.distance_without_incident,
             "longest_distance_without_incident": self.longest_distance_without_incident,

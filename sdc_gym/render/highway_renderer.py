@@ -37,6 +37,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.units import METERS_PER_MILE
+
 if TYPE_CHECKING:
     from sdc_gym.road.highway_map import HighwayMap
 
@@ -57,7 +59,6 @@ TEXT_COLOR: Color = (245, 245, 245)
 STATUS_COLOR: Color = (255, 210, 60)
 MINIMAP_ROAD_COLOR: Color = (150, 150, 150)
 
-METERS_PER_MILE = 1609.344
 MARKER_SPACING_M = 100.0
 DASH_LENGTH_M = 3.0  # US lane dashes: 10 ft paint, 30 ft gap
 DASH_PERIOD_M = 12.0
