@@ -1,0 +1,529 @@
+"""The drive-by-wire car of the track loop: longitudinal force balance + kinematic bicycle.
+
+The track simulator is driven at the drive-by-wire level of the original course: each
+physics step (50 Hz, :data:`PHYSICS_DT`) gets a throttle in ``[0, 1]``, a brake *torque*
+in N m and a *steering-wheel* angle in rad. This module turns those into motion.
+
+Conventions
+-----------
+* The car's position ``(x, y)`` is the **centre of the rear axle** (the point whose
+  velocity points along the body in a kinematic bicycle, so the path it traces is the
+  one the reference stack's pure pursuit and yaw controller reason about). Use
+  :meth:`DBWVehicle.center_xy`, :meth:`DBWVehicle.front_axle_xy` or
+  :meth:`DBWVehicle.point_ahead` for other points of the body.
+* ``yaw`` is the heading in rad, counter-clockwise from +x, wrapped to ``[-pi, pi]``.
+* ``speed`` is in m/s and never negative: the car has no reverse gear in this model.
+* Steering: road-wheel angle ``delta = steering_wheel_angle / steer_ratio``; positive
+  turns left.
+
+Longitudinal model (per step)
+-----------------------------
+::
+
+    F_engine(v) = min(max_drive_force, max_drive_power / v)     full-throttle force, N
+    F_creep(v)  = creep_force_at_rest * max(0, 1 - v / creep_speed)   idle creep, N
+    F_brake     = min(brake_torque / wheel_radius, tire_friction * m * g)
+    F_roll      = rolling_resistance * m * g
+    F_drag(v)   = drag_coefficient * v**2                       (0.5 rho Cd A v^2)
+    a = (F_creep + throttle * F_engine - F_brake - F_roll - F_drag) / m,  m = total_mass
+
+Speed is advanced by explicit Euler (its fixed point is exactly the root of the force
+balance, so a terminal speed is exact) and distance by the trapezoid rule, which is exact
+for the constant acceleration within a step. Brakes and rolling resistance can stop the
+car but never reverse it: a step that would cross zero speed ends at rest, with the
+distance of the exact stop inside the step.
+
+At rest, brake and rolling resistance act as *static* friction: the car pulls away only
+when the drive force exceeds ``F_brake + F_roll``. An automatic gearbox creeps at idle,
+and the original course says a brake torque of about 400 N m (sim) / 700 N m (site)
+holds the stopped car. The creep force at rest is therefore *derived* so that this is
+exactly the holding threshold (``creep_hold_torque``; a brake torque equal to it holds)::
+
+    creep_force_at_rest = creep_hold_torque / wheel_radius + F_roll
+
+The creep fades linearly to zero at ``creep_speed`` (a torque converter at idle pushes
+less as the wheels speed up); on the flat the car creeps at a little under that speed.
+
+Lateral model
+-------------
+Kinematic bicycle about the rear axle: curvature ``kappa = tan(delta) / wheel_base`` and
+``yaw_rate = v * kappa``. This is the exact inverse of the reference stack's yaw
+controller (``steering = steer_ratio * atan(wheel_base * yaw_rate / v)``), so a fixed
+wheel angle drives a circle of radius ``wheel_base / tan(delta)``. Within a step the
+curvature is constant and the rear axle moves along the exact arc (chord
+``ds * sin(h) / h`` at heading ``yaw + h``, ``h = kappa * ds / 2``): no integration drift.
+
+Actuators
+---------
+Each actuator may lag its command by a first-order response with time constant ``tau``
+(discretised exactly: ``y += (1 - exp(-dt / tau)) * (u - y)``); ``tau = 0`` applies the
+command directly. The simulator preset has no lag, like the original Unity simulator,
+which applies wheel torques and wheel angles the frame they arrive; the site preset has
+small lags typical of a production drive-by-wire car (throttle by wire and engine
+response, hydraulic brake pressure build-up, electric power steering).
+
+Cost: one step is plain scalar Python (no numpy), a few microseconds.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+PHYSICS_DT = 0.02
+"""Physics step of the track loop, s (50 Hz, the original drive-by-wire loop rate)."""
+
+GRAVITY = 9.81
+"""m/s^2."""
+
+FUEL_KG_PER_GALLON = 2.858
+"""Mass of a US gallon of gasoline, kg (the reference stack's GAS_DENSITY)."""
+
+_TWO_PI = 2.0 * math.pi
+# Below this half-turn per step (rad) sin(h)/h uses its series: no cancellation.
+_SMALL_HALF_TURN = 1e-4
+
+
+@dataclass(frozen=True)
+class VehicleParameters:
+    """Everything that defines one car; see the module docstring for the equations.
+
+    The first block are the original course's parameters (``spec/track_sim.md``); the
+    second block are this model's own physics, chosen to be plausible for the car (see
+    :data:`SIM_VEHICLE` and :data:`SITE_VEHICLE` for the values and why). Override a
+    field with ``dataclasses.replace(SIM_VEHICLE, drag_coefficient=0.0)`` or
+    :meth:`replace`.
+
+    Attributes:
+        name: preset name ("sim", "site" or anything for custom cars).
+        vehicle_mass: kg, empty car.
+        fuel_capacity: US gallons of fuel on board (a full tank is assumed).
+        brake_deadband: the reference controller's deadband (a fraction of decel_limit
+            below which it does not brake); not used by the physics.
+        decel_limit: m/s^2 (negative), the controller's deceleration limit.
+        accel_limit: m/s^2, the controller's acceleration limit.
+        wheel_radius: m, turns brake torque into brake force.
+        wheel_base: m, rear axle to front axle.
+        steer_ratio: steering-wheel angle / road-wheel angle.
+        max_lat_accel: m/s^2, the yaw controller's lateral acceleration limit.
+        max_steer_angle: rad, largest steering-*wheel* angle either way.
+        max_drive_force: N at the wheels at full throttle, at low speed (traction and
+            first-gear limited).
+        max_drive_power: W at the wheels at full throttle; above
+            ``max_drive_power / max_drive_force`` m/s the force falls as ``P / v``.
+        drag_coefficient: N/(m/s)^2, the lumped ``0.5 * rho_air * Cd * frontal_area``.
+        rolling_resistance: dimensionless rolling resistance coefficient ``C_rr``.
+        creep_hold_torque: N m, brake torque that exactly holds the car at rest with
+            zero throttle (the idle creep is derived from it).
+        creep_speed: m/s, speed at which the idle creep force has faded to zero.
+        tire_friction: tyre-road friction coefficient; caps the brake force at
+            ``tire_friction * total_mass * g`` (harder pedal just locks the wheels).
+        throttle_time_constant: s, first-order lag of the throttle (0 = none).
+        brake_time_constant: s, first-order lag of the brake torque (0 = none).
+        steering_time_constant: s, first-order lag of the steering angle (0 = none).
+    """
+
+    name: str
+    vehicle_mass: float
+    fuel_capacity: float
+    brake_deadband: float
+    decel_limit: float
+    accel_limit: float
+    wheel_radius: float
+    wheel_base: float
+    steer_ratio: float
+    max_lat_accel: float
+    max_steer_angle: float
+    max_drive_force: float
+    max_drive_power: float
+    drag_coefficient: float
+    rolling_resistance: float
+    creep_hold_torque: float
+    creep_speed: float
+    tire_friction: float
+    throttle_time_constant: float = 0.0
+    brake_time_constant: float = 0.0
+    steering_time_constant: float = 0.0
+
+    def __post_init__(self) -> None:
+        positive = ("vehicle_mass", "wheel_radius", "wheel_base", "steer_ratio",
+                    "max_steer_angle", "max_drive_force", "max_drive_power", "creep_speed",
+                    "tire_friction")
+        non_negative = ("fuel_capacity", "drag_coefficient", "rolling_resistance",
+                        "creep_hold_torque", "throttle_time_constant", "brake_time_constant",
+                        "steering_time_constant", "max_lat_accel", "accel_limit",
+                        "brake_deadband")
+        for field in positive:
+            value = getattr(self, field)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f"VehicleParameters {self.name!r}: {field} must be a finite "
+                                 f"number > 0, got {value!r}")
+        for field in non_negative:
+            value = getattr(self, field)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f"VehicleParameters {self.name!r}: {field} must be a finite "
+                                 f"number >= 0, got {value!r}")
+        if not (math.isfinite(self.decel_limit) and self.decel_limit <= 0.0):
+            raise ValueError(f"VehicleParameters {self.name!r}: decel_limit must be <= 0 "
+                             f"(m/s^2), got {self.decel_limit!r}")
+
+    # ------------------------------------------------------------------ derived values
+    @property
+    def fuel_mass(self) -> float:
+        """kg of fuel on board (a full tank)."""
+        return self.fuel_capacity * FUEL_KG_PER_GALLON
+
+    @property
+    def total_mass(self) -> float:
+        """kg, car plus fuel: the mass the physics accelerates."""
+        return self.vehicle_mass + self.fuel_mass
+
+    @property
+    def rolling_force(self) -> float:
+        """N, rolling resistance ``C_rr * m * g`` (constant while moving)."""
+        return self.rolling_resistance * self.total_mass * GRAVITY
+
+    @property
+    def creep_force_at_rest(self) -> float:
+        """N, idle creep at standstill, so that ``creep_hold_torque`` exactly holds."""
+        return self.creep_hold_torque / self.wheel_radius + self.rolling_force
+
+    @property
+    def max_brake_force(self) -> float:
+        """N, the tyre friction limit on the brake force."""
+        return self.tire_friction * self.total_mass * GRAVITY
+
+    @property
+    def max_road_wheel_angle(self) -> float:
+        """rad, largest road-wheel angle (``max_steer_angle / steer_ratio``)."""
+        return self.max_steer_angle / self.steer_ratio
+
+    @property
+    def min_turn_radius(self) -> float:
+        """m, rear-axle radius at full lock (``wheel_base / tan(max road-wheel angle)``)."""
+        return self.wheel_base / math.tan(self.max_road_wheel_angle)
+
+    def engine_force(self, speed: float) -> float:
+        """N, drive force at full throttle at ``speed`` m/s (traction or power limited)."""
+        if speed * self.max_drive_force <= self.max_drive_power:
+            return self.max_drive_force
+        return self.max_drive_power / speed
+
+    def creep_force(self, speed: float) -> float:
+        """N, idle creep at ``speed`` m/s (fades linearly to 0 at ``creep_speed``)."""
+        if speed >= self.creep_speed:
+            return 0.0
+        return self.creep_force_at_rest * (1.0 - speed / self.creep_speed)
+
+    def replace(self, **changes: float | str) -> VehicleParameters:
+        """A copy with some fields changed (``dataclasses.replace``, re-validated)."""
+        return dataclasses.replace(self, **changes)
+
+
+SIM_VEHICLE = VehicleParameters(
+    name="sim",
+    vehicle_mass=1080.0,
+    fuel_capacity=0.0,
+    brake_deadband=0.2,
+    decel_limit=-5.0,
+    accel_limit=1.0,
+    wheel_radius=0.335,
+    wheel_base=3.0,
+    steer_ratio=14.8,
+    max_lat_accel=3.0,
+    max_steer_angle=8.0,
+    # A light compact car: 4 kN at the wheels launches at 3.7 m/s^2 (0-100 km/h in about
+    # 9 s with the 90 kW, 22.5 m/s crossover) - far more than the 1 m/s^2 the reference
+    # controller asks for, as on the original simulator, where full throttle is brisk.
+    max_drive_force=4000.0,
+    max_drive_power=90_000.0,
+    # 0.5 * 1.2 kg/m^3 * Cd 0.30 * 2.2 m^2 = 0.40; C_rr 0.015 (car tyres on asphalt).
+    drag_coefficient=0.40,
+    rolling_resistance=0.015,
+    creep_hold_torque=400.0,  # spec: about 400 N m holds the stopped sim car
+    creep_speed=2.0,  # creeps at ~1.8 m/s (6.5 km/h), a typical automatic at idle
+    tire_friction=1.0,  # dry asphalt
+)
+"""The original simulator's car (spec table, sim column). No actuator lag, like Unity."""
+
+SITE_VEHICLE = VehicleParameters(
+    name="site",
+    vehicle_mass=1736.35,
+    fuel_capacity=13.5,
+    brake_deadband=0.1,
+    decel_limit=-1.0,
+    accel_limit=1.0,
+    wheel_radius=0.2413,
+    wheel_base=2.8498,
+    steer_ratio=14.8,
+    max_lat_accel=3.0,
+    max_steer_angle=8.0,
+    # The course's real car is a Lincoln MKZ hybrid (about 140 kW system power); 6 kN at
+    # the wheels is ~3.4 m/s^2 at launch for its 1775 kg with fuel.
+    max_drive_force=6000.0,
+    max_drive_power=140_000.0,
+    # 0.5 * 1.2 * Cd 0.30 * 2.4 m^2 = 0.43 (mid-size sedan); C_rr 0.015.
+    drag_coefficient=0.43,
+    rolling_resistance=0.015,
+    creep_hold_torque=700.0,  # spec: about 700 N m holds the stopped site car
+    creep_speed=2.0,
+    tire_friction=1.0,
+    # A production drive-by-wire car responds with small delays: electronic throttle and
+    # engine torque build-up, hydraulic brake pressure, electric power steering motor.
+    throttle_time_constant=0.2,
+    brake_time_constant=0.1,
+    steering_time_constant=0.1,
+)
+"""The course's real car (spec table, site column), with small actuator lags."""
+
+VEHICLE_PRESETS: dict[str, VehicleParameters] = {"sim": SIM_VEHICLE, "site": SITE_VEHICLE}
+"""Presets by name."""
+
+
+def vehicle_parameters(name: str) -> VehicleParameters:
+    """The preset called ``name`` ("sim" or "site"); an unknown name lists the choices."""
+    try:
+        return VEHICLE_PRESETS[name]
+    except (KeyError, TypeError):
+        raise ValueError(
+            f"unknown vehicle preset {name!r}; choose one of {sorted(VEHICLE_PRESETS)}"
+        ) from None
+
+
+@dataclass(slots=True)
+class VehicleState:
+    """The car's state after a step (mutable: :meth:`DBWVehicle.step` updates it in place).
+
+    Attributes:
+        x, y: m, position of the rear-axle centre.
+        yaw: rad, heading counter-clockwise from +x, in ``[-pi, pi]``.
+        speed: m/s along the heading, >= 0.
+        yaw_rate: rad/s (positive turning left).
+        acceleration: m/s^2, longitudinal: mean over the last step.
+        lateral_acceleration: m/s^2, ``speed * yaw_rate`` (positive to the left).
+        throttle: actual throttle in [0, 1] after the actuator lag.
+        brake_torque: N m, actual brake torque after the lag.
+        steering_wheel_angle: rad, actual steering-wheel angle after the lag and clamp.
+        road_wheel_angle: rad, ``steering_wheel_angle / steer_ratio``.
+        odometer: m driven since reset.
+    """
+
+    x: float = 0.0
+    y: float = 0.0
+    yaw: float = 0.0
+    speed: float = 0.0
+    yaw_rate: float = 0.0
+    acceleration: float = 0.0
+    lateral_acceleration: float = 0.0
+    throttle: float = 0.0
+    brake_torque: float = 0.0
+    steering_wheel_angle: float = 0.0
+    road_wheel_angle: float = 0.0
+    odometer: float = 0.0
+
+    def copy(self) -> VehicleState:
+        """An independent snapshot."""
+        return dataclasses.replace(self)
+
+
+def _lag_gain(time_constant: float, dt: float) -> float:
+    """Exact first-order-lag gain for one step: 1 means no lag."""
+    if time_constant <= 0.0:
+        return 1.0
+    return -math.expm1(-dt / time_constant)
+
+
+class DBWVehicle:
+    """One drive-by-wire car; see the module docstring for the model.
+
+    Usage::
+
+        car = DBWVehicle(vehicle_parameters("sim"))
+        car.reset(x, y, yaw)
+        state = car.step(throttle, brake_torque, steering_wheel_angle)  # PHYSICS_DT
+
+    :meth:`step` mutates and returns :attr:`state`; take :meth:`VehicleState.copy` to keep
+    a snapshot.
+    """
+
+    def __init__(self, params: VehicleParameters = SIM_VEHICLE) -> None:
+        if not isinstance(params, VehicleParameters):
+            raise TypeError(f"params must be VehicleParameters, got {type(params).__name__}")
+        self.params = params
+        self.state = VehicleState()
+        # Hot-path constants as plain attributes (no property calls inside step()).
+        self._mass = params.total_mass
+        self._inverse_radius = 1.0 / params.wheel_radius
+        self._max_brake_force = params.max_brake_force
+        self._rolling = params.rolling_force
+        self._drag = params.drag_coefficient
+        self._creep0 = params.creep_force_at_rest
+        self._creep_hold_force = params.creep_hold_torque * self._inverse_radius
+        self._creep_slope = self._creep0 / params.creep_speed
+        self._creep_speed = params.creep_speed
+        self._force_max = params.max_drive_force
+        self._power_max = params.max_drive_power
+        self._max_swa = params.max_steer_angle
+        self._curvature_per_swa = 1.0 / params.steer_ratio
+        self._wheel_base = params.wheel_base
+        self._lag_dt = math.nan
+        self._gains = (1.0, 1.0, 1.0)
+
+    # ------------------------------------------------------------------ set-up
+    def reset(
+        self,
+        x: float,
+        y: float,
+        yaw: float,
+        speed: float = 0.0,
+        *,
+        throttle: float = 0.0,
+        brake_torque: float = 0.0,
+        steering_wheel_angle: float = 0.0,
+    ) -> VehicleState:
+        """Place the car (rear axle at ``x, y``, heading ``yaw``) and set the actuators.
+
+        The actuator keywords set the lagged actuator states (e.g. start parked with the
+        brake already at ``brake_torque``); without lag they only matter until the next
+        step.
+        """
+        values = {"x": x, "y": y, "yaw": yaw, "speed": speed}
+        for key, value in values.items():
+            if not math.isfinite(value):
+                raise ValueError(f"DBWVehicle.reset: {key} must be finite, got {value!r}")
+        if speed < 0.0:
+            raise ValueError(f"DBWVehicle.reset: speed must be >= 0 m/s (no reverse), "
+                             f"got {speed!r}")
+        swa = min(max(float(steering_wheel_angle), -self._max_swa), self._max_swa)
+        curvature = math.tan(swa * self._curvature_per_swa) / self._wheel_base
+        self.state = VehicleState(
+            x=float(x), y=float(y), yaw=math.remainder(float(yaw), _TWO_PI),
+            speed=float(speed), yaw_rate=speed * curvature,
+            lateral_acceleration=speed * speed * curvature,
+            throttle=min(max(float(throttle), 0.0), 1.0),
+            brake_torque=max(float(brake_torque), 0.0),
+            steering_wheel_angle=swa, road_wheel_angle=swa * self._curvature_per_swa,
+        )
+        return self.state
+
+    def _set_dt(self, dt: float) -> None:
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"DBWVehicle.step: dt must be a finite number > 0 s, got {dt!r}")
+        p = self.params
+        self._lag_dt = dt
+        self._gains = (_lag_gain(p.throttle_time_constant, dt),
+                       _lag_gain(p.brake_time_constant, dt),
+                       _lag_gain(p.steering_time_constant, dt))
+
+    # ------------------------------------------------------------------ physics
+    def step(
+        self,
+        throttle: float,
+        brake_torque: float,
+        steering_wheel_angle: float,
+        dt: float = PHYSICS_DT,
+    ) -> VehicleState:
+        """Advance ``dt`` seconds under the commands; returns the (mutated) state.
+
+        Commands are clamped to what the hardware can do: throttle to ``[0, 1]``, brake
+        torque to ``>= 0`` N m, steering-wheel angle to ``+-max_steer_angle`` rad (infinite
+        values clamp too; NaN raises ``ValueError``). The caller (the env) validates them
+        and reports out-of-range actions.
+        """
+        if dt != self._lag_dt:
+            self._set_dt(dt)
+        # NaN is the one value no clamp can fix (it compares false with everything).
+        if throttle != throttle or brake_torque != brake_torque or (
+                steering_wheel_angle != steering_wheel_angle):
+            raise ValueError(f"DBWVehicle.step: commands must not be NaN, got throttle "
+                             f"{throttle!r}, brake_torque {brake_torque!r}, "
+                             f"steering_wheel_angle {steering_wheel_angle!r}")
+        st = self.state
+        gain_throttle, gain_brake, gain_steer = self._gains
+
+        # Actuators: clamp the command, then the first-order lag (gain 1: no lag).
+        throttle = 0.0 if throttle < 0.0 else (1.0 if throttle > 1.0 else throttle)
+        brake_torque = brake_torque if brake_torque > 0.0 else 0.0
+        max_swa = self._max_swa
+        swa = -max_swa if steering_wheel_angle < -max_swa else (
+            max_swa if steering_wheel_angle > max_swa else steering_wheel_angle)
+        if gain_throttle < 1.0:
+            throttle = st.throttle + gain_throttle * (throttle - st.throttle)
+        if gain_brake < 1.0:
+            brake_torque = st.brake_torque + gain_brake * (brake_torque - st.brake_torque)
+        if gain_steer < 1.0:
+            swa = st.steering_wheel_angle + gain_steer * (swa - st.steering_wheel_angle)
+
+        # Longitudinal force balance.
+        v0 = st.speed
+        engine = self._force_max
+        if v0 * engine > self._power_max:
+            engine = self._power_max / v0
+        drive = throttle * engine
+        if v0 < self._creep_speed:
+            drive += self._creep0 - self._creep_slope * v0
+        brake = brake_torque * self._inverse_radius
+        if brake > self._max_brake_force:
+            brake = self._max_brake_force
+        mass = self._mass
+        if v0 <= 0.0:
+            # At rest brake and rolling resistance are static friction: pull away only
+            # when the drive force overcomes them (ties hold). The creep at rest minus
+            # rolling is creep_hold_torque / wheel_radius, computed like the brake force
+            # so that a brake torque equal to the holding torque cancels it exactly.
+            net = throttle * engine + self._creep_hold_force - brake
+            if net > 0.0:
+                v1 = net / mass * dt
+                ds = 0.5 * v1 * dt
+            else:
+                v1 = 0.0
+                ds = 0.0
+        else:
+            accel = (drive - brake - self._rolling - self._drag * v0 * v0) / mass
+            v1 = v0 + accel * dt
+            if v1 < 0.0:
+                # Stopped inside the step: exact distance to rest, no reversing.
+                ds = 0.5 * v0 * (v0 / -accel)
+                v1 = 0.0
+            else:
+                ds = 0.5 * (v0 + v1) * dt
+
+        # Lateral: kinematic bicycle about the rear axle, exact arc over the step.
+        road_wheel = swa * self._curvature_per_swa
+        curvature = math.tan(road_wheel) / self._wheel_base
+        half_turn = 0.5 * curvature * ds
+        if -_SMALL_HALF_TURN < half_turn < _SMALL_HALF_TURN:
+            chord = ds * (1.0 - half_turn * half_turn / 6.0)
+        else:
+            chord = ds * math.sin(half_turn) / half_turn
+        yaw = st.yaw
+        mid_heading = yaw + half_turn
+        st.x += chord * math.cos(mid_heading)
+        st.y += chord * math.sin(mid_heading)
+        st.yaw = math.remainder(yaw + 2.0 * half_turn, _TWO_PI)
+
+        st.speed = v1
+        st.acceleration = (v1 - v0) / dt
+        st.yaw_rate = v1 * curvature
+        st.lateral_acceleration = v1 * v1 * curvature
+        st.throttle = throttle
+        st.brake_torque = brake_torque
+        st.steering_wheel_angle = swa
+        st.road_wheel_angle = road_wheel
+        st.odometer += ds
+        return st
+
+    # ------------------------------------------------------------------ body points
+    def point_ahead(self, distance: float) -> tuple[float, float]:
+        """(x, y) in m of the body point ``distance`` m ahead of the rear axle."""
+        st = self.state
+        return st.x + distance * math.cos(st.yaw), st.y + distance * math.sin(st.yaw)
+
+    def center_xy(self) -> tuple[float, float]:
+        """(x, y) in m of the wheelbase midpoint (the car's geometric centre here)."""
+        return self.point_ahead(0.5 * self._wheel_base)
+
+    def front_axle_xy(self) -> tuple[float, float]:
+        """(x, y) in m of the front-axle centre."""
+        return self.point_ahead(self._wheel_base)
