@@ -412,8 +412,9 @@ def test_bold_cooldowns_are_shorter():
 
 def test_conservative_checks_far_lane_behind_before_merging_into_middle():
     def scene() -> Scene:
-        # Lane 0 -> 1 with a fast car closing in lane 2 (could merge into lane 1).
-        return Scene(ego_lane=0, ego_speed=20.0).add(0, 40.0, 16.0).add(2, -15.0, 26.0)
+        # Lane 0 -> 1 with a fast car closing in lane 2 (could merge into lane 1): 25 m
+        # behind, needing 3 x (26 - 20) + 11 = 29 m by the projection.
+        return Scene(ego_lane=0, ego_speed=20.0).add(0, 40.0, 16.0).add(2, -25.0, 26.0)
 
     cons = cruising(DrivingStyle.CONSERVATIVE, lane=0)
     assert decide_at(cons, scene(), 30.0).target_lane == 0
@@ -508,3 +509,54 @@ def test_never_commands_above_49_83_mph():
             assert 0.0 <= d.target_speed <= cap
             assert 0 <= d.target_lane < 3
         assert cap / MPH < 49.83
+
+
+def test_no_merge_into_middle_beside_a_far_lane_car_either_style():
+    """A far-lane car within 20 m either way may take the middle lane at the same time
+    (traffic merges when the lane is clear by +-20 m): both styles wait."""
+    for style in DrivingStyle:
+        for far_gap in (-12.0, 0.5, 15.0):
+            scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0).add(2, far_gap, 20.0)
+            fsm = cruising(style, lane=0)
+            assert decide_at(fsm, scene, 30.0).target_lane == 0, (style, far_gap)
+        scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0).add(2, -21.0, 20.0)
+        assert decide_at(cruising(style, lane=0), scene, 30.0).target_lane == 1, style
+
+
+def test_lane_change_aborted_when_a_car_enters_the_target_lane_beside():
+    fsm = cruising(DrivingStyle.BOLD, lane=0)
+    scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0)
+    assert decide_at(fsm, scene, 30.0).target_lane == 1
+    # Half-way to the line, a car from lane 2 is now in lane 1, 3 m ahead: go back.
+    scene.ego_d = 3.0
+    scene.add(1, 3.0, 20.0)
+    decision = decide_at(fsm, scene, 30.5)
+    assert decision.target_lane == 0
+    assert fsm.lane_change_in_progress
+
+
+def test_lane_change_not_aborted_past_the_lane_line():
+    fsm = cruising(DrivingStyle.BOLD, lane=0)
+    scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0)
+    assert decide_at(fsm, scene, 30.0).target_lane == 1
+    scene.ego_d = 4.5  # 2.5 m from lane 0's centre: committed
+    scene.add(1, 12.0, 20.0)
+    assert decide_at(fsm, scene, 30.5).target_lane == 1
+
+
+def test_following_speed_is_continuous_at_the_braking_range_and_settles_outside():
+    """Beyond the braking range the goal is p(range) x u + gain x (gap - range): equal to
+    the braking curve's value at the edge, and equal to the lead's speed at
+    range + u (1 - p(range)) / gain (the gap the ego settles at)."""
+    fsm = FSMBehavior(DrivingStyle.BOLD)
+    p = fsm.params
+    u = 18.0
+    edge = p.active.brake_range_m
+    inside = p.braking_percent(edge - 1e-6) / 100.0 * u
+    settle = edge + u * (1.0 - p.braking_percent(edge) / 100.0) / p.approach_gain_per_s
+    for gap, expected in ((edge + 1e-6, inside), (settle, u)):
+        fsm = FSMBehavior(DrivingStyle.BOLD)
+        warm_up(fsm, lane=1)
+        scene = Scene(ego_lane=1, ego_speed=u).add(1, gap, u).add(0, 5.0, u).add(2, 5.0, u)
+        goal = decide_at(fsm, scene, 0.1).target_speed
+        assert goal == pytest.approx(expected, abs=1e-4), gap

@@ -28,6 +28,25 @@ Rules, in the order applied each cycle (all modes but Launch, whose lane is fixe
    when the ego lane is clear; move early to an open adjacent lane when a car shows up
    between ``mid_range_m`` and ``early_change_max_gap_m`` ahead.
 
+Where this implementation goes beyond the seed, and why
+    * **Following.** The seed drives at the mode's goal (cruise speed, or 1.05-1.10 x the
+      lead in Advance) until the lead enters the braking range, where the goal drops to
+      ``p(range)`` x the lead's speed (90 % at Bold's 30 m). The ego then falls back out
+      of the range, speeds up again, and hunts: a 35-45 mph sawtooth with hard braking
+      and jerk above 5 m/s^3 by the original's measure. Beyond the range the goal is
+      therefore capped at ``p(range) x u + approach_gain_per_s x (gap - range)``, which
+      meets the braking curve at its edge: the ego settles at
+      ``range + u (1 - p(range)) / gain`` (about 32 m for Bold, 50 m Conservative in
+      Adapt) at the lead's speed ``u``, and a far lead is approached at a deceleration of
+      ``gain x`` the closing speed. A lead held this way counts as blocking for the
+      tactical rules even outside ``mid_range_m``.
+    * **Far-lane cars beside the ego.** Traffic merges into a lane that is clear by +-20 m
+      of it, so merging into the middle lane waits while a far-lane car is within
+      ``far_lane_merge_watch_m`` either way (both styles): both could move at once.
+    * **Aborting a lane change.** If a car appears in the target lane beside the ego (or
+      closes in behind faster than the safety gap allows) while the ego is still on its
+      side of the lane line, the ego goes back to its lane (once per lane change).
+
 Gaps
     The world model's gaps are centre-to-centre s distances, which is also how the seed
     measured every distance it quotes (car s minus sensed s), so all thresholds are used as
@@ -173,6 +192,19 @@ class FSMParameters:
             this ahead and behind.
         single_change_radius_m: lane changes need a road radius above this.
         double_change_radius_m: double lane changes need a road radius above this.
+        approach_gain_per_s: beyond the braking range, the speed goal is capped at
+            ``p(range) x lead speed + gain x (gap - range)``, continuous with the braking
+            curve at its edge (0 disables the cap: the seed's step from the mode's goal
+            to ``p(range)`` at the edge; see "Following" in the module docstring).
+        far_lane_merge_watch_m: merging into the middle lane, a far-lane car closer than
+            this either way (centre to centre) could be merging too: wait.
+        abort_gap_m: during a lane change, a car in the target lane closer than this
+            either way (or closing on it behind) sends the ego back to its lane, while
+            the ego is still within ``abort_window_m`` of the lane it left.
+        abort_window_m: how far (m, laterally) from its old lane's centre a lane change
+            can still be aborted (2 m: up to the lane line).
+        merge_rate_mps: a car in the lane beyond the target one moving toward it faster
+            than this (m/s, lateral) counts as entering the target lane.
     """
 
     calm: RangeProfile = CALM
@@ -207,6 +239,11 @@ class FSMParameters:
     return_far_lane_clear_m: float = 50.0
     single_change_radius_m: float = 500.0
     double_change_radius_m: float = 3000.0
+    approach_gain_per_s: float = 1.0
+    far_lane_merge_watch_m: float = 20.0
+    abort_gap_m: float = 8.0
+    abort_window_m: float = 2.0
+    merge_rate_mps: float = 0.3
     _brake_scale: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -312,6 +349,8 @@ class FSMBehavior:
         self._target_lane = -1
         self._changing = False
         self._change_began_in_advance = False
+        self._origin_lane = -1
+        self._aborted = False
 
     def _enter(self, mode: Mode, now: float) -> None:
         self._mode = mode
@@ -344,6 +383,11 @@ class FSMBehavior:
                 and p.adapt_after_advance_lane_change
             ):
                 self._enter(Mode.ADAPT, now)
+
+        if self._changing and not self._aborted and self._must_abort(world, target):
+            # Someone took the gap: back to the lane being left (once per lane change).
+            self._target_lane = target = self._origin_lane
+            self._aborted = True
 
         own = lanes[ego]
         ahead = own.ahead_gap
@@ -398,6 +442,15 @@ class FSMBehavior:
             goal = p.cruise_speed_mps
             accel = p.normal_acceleration_mps2
         hard = False
+        following = False  # the lead, not the mode, sets the speed goal
+        k = p.approach_gain_per_s
+        if k > 0.0 and prof.brake_range_m <= lead_gap < math.inf and mode is not Mode.LAUNCH:
+            cap = self._range_speed(prof, lead_speed) + k * (lead_gap - prof.brake_range_m)
+            if cap < goal:
+                goal = cap
+                following = True
+                if goal < v and accel < p.normal_acceleration_mps2:
+                    accel = p.normal_acceleration_mps2
         if lead_gap < prof.brake_range_m:
             fraction = p.braking_percent(lead_gap) * 0.01
             goal = fraction * lead_speed
@@ -427,7 +480,8 @@ class FSMBehavior:
         ):
             since = now - self._last_change_time
             new = -1
-            if ahead < prof.mid_range_m and since > prof.tactical_cooldown_s:
+            blocked = ahead < prof.mid_range_m or (following and lead_gap == ahead)
+            if blocked and since > prof.tactical_cooldown_s:
                 new = self._tactical(
                     lanes, world.lane_count, ego, ahead, v, prof, world.road_radius
                 )
@@ -436,9 +490,11 @@ class FSMBehavior:
             if new < 0 and since > prof.strategic_cooldown_s:
                 new = self._strategic(lanes, world.lane_count, ego, ahead, v, prof)
             if new >= 0:
+                self._origin_lane = target
                 self._target_lane = target = new
                 self._last_change_time = now
                 self._changing = True
+                self._aborted = False
                 self._change_began_in_advance = mode is Mode.ADVANCE
 
         return BehaviorDecision(
@@ -449,6 +505,38 @@ class FSMBehavior:
             steering=mode is not Mode.LAUNCH,
             mode=mode.value,
         )
+
+    def _must_abort(self, world: WorldModel, target: int) -> bool:
+        """A car is in (or entering) the target lane right beside the ego, while the ego
+        is still within ``abort_window_m`` of the lane it is leaving."""
+        p = self._params
+        origin_d = (self._origin_lane + 0.5) * world.lane_width
+        if abs(world.ego_d - origin_d) > p.abort_window_m:
+            return False
+        step = 1 if target > self._origin_lane else -1
+        half = 0.5 * world.lane_width
+        v = world.ego_speed
+        for car in world.cars:
+            gap = car.gap
+            if gap > p.abort_gap_m or gap < -p.safety_gap_min_m - p.safety_horizon_s * 10.0:
+                continue
+            # Inside the target lane, or heading into it from the lane beyond.
+            offset = (car.d - (target + 0.5) * world.lane_width) * step
+            in_lane = -half < offset < half or (
+                half <= offset < 3.0 * half and car.d_rate * step < -p.merge_rate_mps
+            )
+            if not in_lane:
+                continue
+            if gap >= -p.abort_gap_m:  # alongside
+                return True
+            # Behind: closing in faster than the safety gap allows.
+            if -gap < p.safety_horizon_s * (car.speed - v) + p.abort_gap_m:
+                return True
+        return False
+
+    def _range_speed(self, prof: RangeProfile, lead_speed: float) -> float:
+        """The braking curve's speed at the edge of its range, behind ``lead_speed``."""
+        return self._params.braking_percent(prof.brake_range_m) * 0.01 * lead_speed
 
     # ------------------------------------------------------------------ lane rules
     def _safe_behind(self, lane: LaneView, v: float, least: float) -> bool:
@@ -469,6 +557,8 @@ class FSMBehavior:
         far = lanes[f]
         if far.ahead_gap <= p.far_lane_ahead_m:
             return False
+        if far.ahead_gap < p.far_lane_merge_watch_m or far.behind_gap < p.far_lane_merge_watch_m:
+            return False  # beside us: the traffic's own +-20 m clearance rule lets it merge
         return not p.check_far_lane_behind or self._safe_behind(far, v, p.safety_gap_min_m)
 
     def _tactical(
