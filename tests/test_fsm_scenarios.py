@@ -335,12 +335,23 @@ def test_launch_then_adapt_above_40_mph():
 
 
 def test_launch_ignores_open_lanes():
+    """Launching (slow, lead beyond the braking range) the ego keeps its lane, steering muted."""
     fsm = FSMBehavior()
-    scene = Scene(ego_lane=0, ego_speed=10.0, time=40.0).add(0, 40.0, 10.0)
+    scene = Scene(ego_lane=0, ego_speed=10.0, time=40.0).add(0, 60.0, 10.0)
     d = fsm.decide(scene.world())
     scene.time = 80.0
     d = fsm.decide(scene.world())
     assert fsm.mode is Mode.LAUNCH and d.target_lane == 0 and not d.steering
+
+
+def test_launch_ends_behind_a_lead_in_braking_range():
+    """Behind a car slower than 40 mph the seed's launch would never end (and never steer):
+    a lead inside the braking range hands over to Adapt, which steers and follows it."""
+    fsm = FSMBehavior()
+    scene = Scene(ego_lane=1, ego_speed=10.0).add(1, 40.0, 15.0)
+    d = fsm.decide(scene.world())
+    assert fsm.mode is Mode.ADAPT and d.steering
+    assert d.target_speed == pytest.approx(fsm.params.braking_percent(40.0) / 100.0 * 15.0)
 
 
 def test_adapt_to_cruise_needs_centred_and_clear_100_m():

@@ -1,7 +1,8 @@
 """The seed's rule-based behavior layer: a four-mode finite state machine in two styles.
 
 Modes (:class:`Mode`)
-    * Launch: accelerate straight at the launch rate, steering muted; to Adapt above 40 mph.
+    * Launch: accelerate straight at the launch rate, steering muted; to Adapt above 40 mph
+      (or, beyond the seed, as soon as a lead car is inside the braking range).
     * Adapt: follow the car ahead (the braking curve below); to Advance after ``patience_s``
       blocked; to Cruise above 40 mph, centred (+-0.25 m) in a lane clear for 100 m.
     * Advance: close in on the car ahead (1.05 x its speed, 1.10 Bold, at the gentle rate),
@@ -398,7 +399,9 @@ class FSMBehavior:
         # Mode transitions: at most one per cycle.
         mode = self._mode
         if mode is Mode.LAUNCH:
-            if v > p.low_cruise_speed_mps:
+            # A lead inside the braking range ends the launch too: behind a car slower
+            # than 40 mph the seed's launch (steering muted) would never end.
+            if v > p.low_cruise_speed_mps or ahead < p.calm.brake_range_m:
                 self._enter(Mode.ADAPT, now)
         elif mode is Mode.ADAPT:
             if ahead >= p.adapt_clear_ahead_m:
