@@ -6,6 +6,7 @@ Importing the package registers the environments under the ``sdc_gym/`` namespac
     import sdc_gym  # noqa: F401  (registers the ids)
 
     env = gym.make("sdc_gym/HighwayLoop-v0", config={"traffic": {"car_count": 20}})
+    env = gym.make("sdc_gym/TrackLoop-v0", config={"track": "site"})
 """
 
 from gymnasium.envs.registration import register, registry
@@ -14,6 +15,7 @@ __version__ = "0.1.0"
 
 _ENVIRONMENTS = {
     "sdc_gym/HighwayLoop-v0": "sdc_gym.envs.highway_loop:HighwayLoopEnv",
+    "sdc_gym/TrackLoop-v0": "sdc_gym.envs.track_loop:TrackLoopEnv",
 }
 
 for _env_id, _entry_point in _ENVIRONMENTS.items():

@@ -98,9 +98,10 @@ def test_default_highway_has_the_original_character():
     assert (curvature < -1e-4).mean() > 0.05
     assert (np.abs(curvature) < 1e-4).mean() > 0.3
     # Deterministic: rebuilt from scratch gives the same points.
-    from sdc_gym.road.builtin_highways import _DEFAULT_LAYOUT, _sample_layout
+    from sdc_gym.road.builtin_highways import _DEFAULT_LAYOUT
+    from sdc_gym.road.layout import sample_layout
 
-    first, again = _sample_layout(_DEFAULT_LAYOUT, 20.0), _sample_layout(_DEFAULT_LAYOUT, 20.0)
+    first, again = sample_layout(_DEFAULT_LAYOUT, 20.0), sample_layout(_DEFAULT_LAYOUT, 20.0)
     assert np.array_equal(first, again)
 
 

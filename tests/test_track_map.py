@@ -12,7 +12,7 @@ from sdc_gym.road.highway_map import MapFormatError
 from sdc_gym.road.track_map import (
     DEFAULT_FOCAL_LENGTH_X_PX,
     DEFAULT_FOCAL_LENGTH_Y_PX,
-    LIGHT_HOUSING_HEIGHT_M,
+    LIGHT_CENTER_HEIGHT_M,
     LIGHT_POLE_OFFSET_M,
     SITE_LIGHT_POLE_OFFSET_M,
     TrackFormatError,
@@ -95,7 +95,7 @@ def test_lights_stand_past_their_stop_lines_over_the_lane_facing_back(sim_track)
     ahead = reference.s_difference(light_s, sim_track.stop_line_s)
     assert ahead == pytest.approx(np.full(8, LIGHT_POLE_OFFSET_M), abs=1e-6)
     assert light_d == pytest.approx(np.zeros(8), abs=1e-6)
-    assert sim_track.light_positions[:, 2] == pytest.approx(np.full(8, LIGHT_HOUSING_HEIGHT_M))
+    assert sim_track.light_positions[:, 2] == pytest.approx(np.full(8, LIGHT_CENTER_HEIGHT_M))
     facing = np.angle(np.exp(1j * (sim_track.light_yaw - reference.heading(light_s))))
     assert np.abs(facing) == pytest.approx(np.full(8, np.pi))
     # The first light: 24 m along an almost straight stretch from (1148.56, 1184.65).

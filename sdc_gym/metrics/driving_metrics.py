@@ -50,6 +50,12 @@ Choices this module makes (the simulator leaves them open)
   reported). The heading before :meth:`~DrivingMetrics.reset` is unknown, so the raw
   acceleration exists from the 2nd recorded step and the raw jerk from the 3rd (0 before).
 
+Other environments may add incident kinds of their own (the track loop's ``"red_light"``):
+pass ``extra_kinds`` to :class:`DrivingMetrics` and the incidents the env detects to
+:meth:`~DrivingMetrics.record` (``extra_incidents``). They are counted, logged, ordered
+and restart the distance without incident exactly like the built-in kinds; within a step
+they come after the built-in kinds, in ``extra_kinds`` order.
+
 Incidents are counted once per *event* (rising edge): consecutive violating steps (or
 blocks, or windows) make one incident. A lane-straddle run counts once when it exceeds
 ``max_straddle_steps``. A collision counts once per contact: a contact with car ``c`` lasts
@@ -84,7 +90,6 @@ INCIDENT_KINDS: tuple[str, ...] = ("collision", "acceleration", "jerk", "speed",
 """Every incident kind, in the order incidents of the same step are reported."""
 
 _KIND_ORDER = {kind: i for i, kind in enumerate(INCIDENT_KINDS)}
-_INFO_INCIDENT_KEYS = tuple(f"incidents_{kind}" for kind in INCIDENT_KINDS)
 
 
 @dataclass(frozen=True)
@@ -146,8 +151,9 @@ class Incident:
 
     ``value`` depends on the kind: the car id (collision), the block total acceleration in
     m/s^2 (acceleration), the signed window jerk in m/s^3 (jerk), the speed in m/s
-    (speed), the straddle duration in s (lane), or ``d`` in m (off_road). Block and window
-    incidents are placed at the last step of their block.
+    (speed), the straddle duration in s (lane), ``d`` in m (off_road), or what the env
+    documents for its ``extra_kinds`` (the track loop's red_light: the stop line's index).
+    Block and window incidents are placed at the last step of their block.
     """
 
     kind: str
@@ -174,13 +180,26 @@ class DrivingMetrics:
     Args:
         rules: sampling and thresholds (:class:`IncidentRules`).
         loop_length: length of the closed road along ``s``, m; ``s`` wraps at this value.
+        extra_kinds: incident kinds an env detects itself and passes to :meth:`record`
+            (e.g. ``("red_light",)``); reported after :data:`INCIDENT_KINDS`.
     """
 
-    def __init__(self, rules: IncidentRules, loop_length: float) -> None:
+    def __init__(
+        self, rules: IncidentRules, loop_length: float, extra_kinds: tuple[str, ...] = ()
+    ) -> None:
         if not loop_length > 0.0:
             raise ValueError(f"loop_length must be > 0, got {loop_length}")
+        kinds = (*INCIDENT_KINDS, *extra_kinds)
+        if len(set(kinds)) != len(kinds):
+            raise ValueError(f"extra_kinds must be new, distinct kinds (built-in: "
+                             f"{list(INCIDENT_KINDS)}), got {list(extra_kinds)}")
         self.rules = rules
         self.loop_length = float(loop_length)
+        self.kinds: tuple[str, ...] = kinds
+        """Every incident kind this instance counts, in report order."""
+        self._kind_order = {kind: i for i, kind in enumerate(kinds)}
+        self._extra_kinds = frozenset(extra_kinds)
+        self._info_keys = tuple(f"incidents_{kind}" for kind in kinds)
         # Derived constants, computed once because record() is on the hot path.
         self._inv_dt = 1.0 / rules.dt
         self._inv_dt2 = self._inv_dt**2
@@ -234,7 +253,7 @@ class DrivingMetrics:
         self._straddle_run = 0
         self._contact = -1
         # Incident bookkeeping.
-        self._counts = dict.fromkeys(INCIDENT_KINDS, 0)
+        self._counts = dict.fromkeys(self.kinds, 0)
         self._incidents: list[Incident] = []
         self._dist_at_incident = 0.0
         self._longest_closed = 0.0
@@ -247,6 +266,7 @@ class DrivingMetrics:
         d: np.ndarray,
         speed: np.ndarray,
         collision_ids: np.ndarray | None = None,
+        extra_incidents: list[tuple[int, str, float]] | None = None,
     ) -> list[Incident]:
         """Add ``k >= 1`` consecutive physics steps and return the incidents they began.
 
@@ -257,6 +277,8 @@ class DrivingMetrics:
             speed: speed, shape ``(k,)``, m/s.
             collision_ids: shape ``(k,)`` ints; -1 for no contact at that step, else the
                 id of a car in contact. ``None`` means no contact at all.
+            extra_incidents: incidents of the ``extra_kinds`` that the caller detected in
+                these steps, as ``(step index in 0..k-1, kind, value)``.
 
         Returns:
             The incidents that began during these steps, in step order.
@@ -374,6 +396,14 @@ class DrivingMetrics:
         else:
             self._contact = -1
 
+        if extra_incidents:
+            for i, kind, value in extra_incidents:
+                if kind not in self._extra_kinds or not 0 <= i < k:
+                    raise ValueError(f"extra incident ({i}, {kind!r}): the kind must be one "
+                                     f"of extra_kinds {sorted(self._extra_kinds)} and the "
+                                     f"index within the {k} recorded steps")
+                pending.append((i, self._kind_order[kind], float(value)))
+
         # ---- block rule: small Python work once per completed block (every 10 steps).
         blk_v = self._blk_v
         blk_v.extend(speed_l)
@@ -474,7 +504,7 @@ class DrivingMetrics:
         dt = self.rules.dt
         new: list[Incident] = []
         for i, order, value in pending:
-            kind = INCIDENT_KINDS[order]
+            kind = self.kinds[order]
             step = t0 + 1 + i
             x, y = pts[i]
             new.append(Incident(kind, step * dt, step, x, y, s_l[i], d_l[i], float(value)))
@@ -519,7 +549,7 @@ class DrivingMetrics:
 
     @property
     def incident_counts(self) -> dict[str, int]:
-        """Incidents by kind; every kind of :data:`INCIDENT_KINDS` is present."""
+        """Incidents by kind; every kind of :attr:`kinds` is present."""
         return dict(self._counts)
 
     @property
@@ -618,7 +648,7 @@ class DrivingMetrics:
             "distance_without_incident": self._distance - self._dist_at_incident,
             "incidents": len(self._incidents),
         }
-        for key, kind in zip(_INFO_INCIDENT_KEYS, INCIDENT_KINDS, strict=True):
+        for key, kind in zip(self._info_keys, self.kinds, strict=True):
             info[key] = counts[kind]
         return info
 

@@ -37,6 +37,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.render.drawing import box_corners, circular_runs
 from sdc_gym.units import METERS_PER_MILE
 
 if TYPE_CHECKING:
@@ -64,9 +65,6 @@ DASH_LENGTH_M = 3.0  # US lane dashes: 10 ft paint, 30 ft gap
 DASH_PERIOD_M = 12.0
 SHOULDER_M = 1.0
 SAMPLE_STEP_M = 2.0
-# A run of visible samples is drawn in chunks of at most this many segments, so each road
-# polygon stays simple even when the whole loop is in view.
-_CHUNK_SEGMENTS = 48
 _TEXT_CACHE_SIZE = 256
 
 
@@ -100,46 +98,6 @@ class HighwayScene:
     distance_m: float
     incidents: dict[str, int] = field(default_factory=dict)
     status: str = ""
-
-
-def _circular_runs(mask: NDArray[np.bool_]) -> list[NDArray[np.intp]]:
-    """Index runs of consecutive True samples on a closed loop, each grown by one sample
-    at both ends (so lines reach past the view edge), split into bounded chunks."""
-    n = mask.size
-    if not mask.any():
-        return []
-    if mask.all():
-        runs = [np.arange(n + 1) % n]  # the whole loop, closed
-    else:
-        first_false = int(np.argmin(mask))
-        hits = np.flatnonzero(np.roll(mask, -first_false))
-        breaks = np.flatnonzero(np.diff(hits) > 1) + 1
-        runs = [
-            (np.arange(run[0] - 1, run[-1] + 2) + first_false) % n
-            for run in np.split(hits, breaks)
-        ]
-    chunks = []
-    for run in runs:
-        # Neighbouring chunks share a whole segment, so their polygons overlap (no seam).
-        for start in range(0, len(run) - 1, _CHUNK_SEGMENTS):
-            chunks.append(run[max(start - 1, 0) : start + _CHUNK_SEGMENTS + 1])
-    return chunks
-
-
-def _box_corners(
-    xy: NDArray[np.float64],
-    heading: NDArray[np.float64],
-    front: NDArray[np.float64],
-    back: NDArray[np.float64],
-    half_width: NDArray[np.float64],
-) -> NDArray[np.float64]:
-    """(n, 4, 2) corners of boxes spanning ``back..front`` metres along the heading from
-    ``xy`` and ``±half_width`` across it."""
-    fwd = np.stack([np.cos(heading), np.sin(heading)], axis=-1)
-    right = np.stack([fwd[:, 1], -fwd[:, 0]], axis=-1)
-    along = np.stack([front, front, back, back], axis=-1)[..., None]
-    across = np.stack([-half_width, half_width, half_width, -half_width], axis=-1)[..., None]
-    return xy[:, None, :] + along * fwd[:, None, :] + across * right[:, None, :]
 
 
 class HighwayRenderer:
@@ -310,7 +268,7 @@ class HighwayRenderer:
 
         # Road surface and solid lines, run by run of visible centre-line samples.
         dist = np.hypot(*(self._center_xy - ego).T)
-        chunks = _circular_runs(dist < self.view_radius_m + self._sample_margin_m)
+        chunks = circular_runs(dist < self.view_radius_m + self._sample_margin_m)
         chunk_pts = [to_screen(self._edges_xy[:, chunk], ego_xy, heading) for chunk in chunks]
         # Layer by layer (all shoulders, then all lanes, then lines): a later chunk's
         # shoulder must not cover the overlap it shares with the previous chunk's lanes.
@@ -415,8 +373,8 @@ class HighwayRenderer:
         """Oriented car boxes with a dark outline and a windscreen towards the front."""
         draw = self._pg.draw
         half_l = 0.5 * length
-        body = _box_corners(xy, heading, half_l, -half_l, 0.5 * width)
-        glass = _box_corners(xy, heading, 0.25 * length, 0.08 * length, 0.38 * width)
+        body = box_corners(xy, heading, half_l, -half_l, 0.5 * width)
+        glass = box_corners(xy, heading, 0.25 * length, 0.08 * length, 0.38 * width)
         body_px = self.world_to_screen(body, ego_xy, ego_heading).tolist()
         glass_px = self.world_to_screen(glass, ego_xy, ego_heading).tolist()
         for body_i, glass_i, color in zip(body_px, glass_px, colors, strict=True):

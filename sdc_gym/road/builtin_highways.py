@@ -6,8 +6,8 @@ counter-clockwise loop of 6.91 km, three 4 m lanes, long straights and mild bend
 rounds to a smallest radius of about 111 m) and two S-bends where the road turns
 right for a while. ``"oval"`` is a small 1.4 km stadium loop for quick tests and training.
 
-A layout is a table of straights and circular arcs; two straights are left free and solved
-so that the loop closes exactly (the closure is linear in straight lengths). The layout is
+A layout is a table of straights and circular arcs (:mod:`sdc_gym.road.layout`); two
+straights are left free and solved so that the loop closes exactly. The layout is
 then sampled every ~20 m into waypoints (like the original's sparse map) and the smooth
 reference line is fitted through them, which rounds the curvature steps at the joints.
 """
@@ -17,93 +17,26 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-import numpy as np
-
 from sdc_gym.road.highway_map import HighwayMap, MapFormatError, load_highway_map
+from sdc_gym.road.layout import Segment, sample_layout
 
-# ("straight", length m | None = solved for closure) or ("arc", radius m, turn degrees, + = left)
-_Segment = tuple[str, float | None] | tuple[str, float, float]
-
-_DEFAULT_LAYOUT: tuple[_Segment, ...] = (
+_DEFAULT_LAYOUT: tuple[Segment, ...] = (
     ("straight", None), ("arc", 1340.0, 30.0), ("straight", 290.0), ("arc", 126.0, 60.0),
     ("straight", 320.0), ("arc", 410.0, -25.0), ("arc", 580.0, 55.0), ("straight", None),
     ("arc", 300.0, 70.0), ("straight", 200.0), ("arc", 1040.0, 20.0), ("arc", 1050.0, -30.0),
     ("straight", 410.0), ("arc", 160.0, 80.0), ("straight", 320.0), ("arc", 450.0, 40.0),
     ("straight", 850.0), ("arc", 290.0, 60.0),
 )
-_OVAL_LAYOUT: tuple[_Segment, ...] = (
+_OVAL_LAYOUT: tuple[Segment, ...] = (
     ("straight", 230.0), ("arc", 150.0, 180.0), ("straight", 230.0), ("arc", 150.0, 180.0),
 )
 _WAYPOINT_SPACING_M = 20.0
 
 
-def _closing_lengths(layout: tuple[_Segment, ...]) -> list[float]:
-    """Lengths of the free straights that close the loop (none or exactly two free)."""
-    heading = 0.0
-    displacement = np.zeros(2)
-    free_directions: list[np.ndarray] = []
-    for segment in layout:
-        if segment[0] == "straight":
-            direction = np.array([np.cos(heading), np.sin(heading)])
-            if segment[1] is None:
-                free_directions.append(direction)
-            else:
-                displacement += segment[1] * direction
-        else:
-            _, radius, degrees = segment
-            turn = np.radians(degrees)
-            end = heading + turn
-            side = np.sign(turn)
-            displacement += radius * side * np.array(
-                [np.sin(end) - np.sin(heading), np.cos(heading) - np.cos(end)]
-            )
-            heading = end
-    if not np.isclose(heading, 2 * np.pi):
-        raise ValueError(f"layout turns {np.degrees(heading):.3f} deg, a CCW loop needs 360")
-    if not free_directions:
-        if not np.allclose(displacement, 0.0, atol=1e-6):
-            raise ValueError(f"layout does not close: it ends at {displacement}")
-        return []
-    if len(free_directions) != 2:
-        raise ValueError("a layout needs none or exactly two free straights to close")
-    lengths = np.linalg.solve(np.column_stack(free_directions), -displacement)
-    if np.any(lengths <= 0):
-        raise ValueError(f"layout cannot close with positive straights: {lengths}")
-    return [float(length) for length in lengths]
-
-
-def _sample_layout(layout: tuple[_Segment, ...], spacing: float) -> np.ndarray:
-    """Points along the closed layout roughly every ``spacing`` metres (last != first)."""
-    free = iter(_closing_lengths(layout))
-    position = np.zeros(2)
-    heading = 0.0
-    points = [position.copy()]
-    for segment in layout:
-        if segment[0] == "straight":
-            length = next(free) if segment[1] is None else segment[1]
-            count = max(round(length / spacing), 1)
-            direction = np.array([np.cos(heading), np.sin(heading)])
-            for k in range(1, count + 1):
-                points.append(position + direction * length * k / count)
-            position = position + direction * length
-        else:
-            _, radius, degrees = segment
-            turn = np.radians(degrees)
-            side = np.sign(turn)
-            centre = position + radius * side * np.array([-np.sin(heading), np.cos(heading)])
-            count = max(round(radius * abs(turn) / spacing), 2)
-            for k in range(1, count + 1):
-                angle = heading + turn * k / count
-                points.append(centre + radius * side * np.array([np.sin(angle), -np.cos(angle)]))
-            heading += turn
-            position = points[-1]
-    return np.asarray(points[:-1])  # the last point is the first again
-
-
 @functools.cache
 def _builtin(name: str) -> HighwayMap:
     layout = _DEFAULT_LAYOUT if name == "default" else _OVAL_LAYOUT
-    points = _sample_layout(layout, _WAYPOINT_SPACING_M)
+    points = sample_layout(layout, _WAYPOINT_SPACING_M)
     # Lift the map into positive coordinates like the original's (x ~ 100..2400 m).
     points = points - points.min(axis=0) + 100.0
     return HighwayMap.from_waypoints(name, points, start_s=124.8336, start_d=6.0)

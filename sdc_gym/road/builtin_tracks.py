@@ -12,8 +12,8 @@ still on the straight.
 6.5 to 8 m, above the real car's ~4.8 m turning radius) with one light, the site's 10 km/h
 limit and its camera's focal lengths.
 
-A layout is a table of straights and circular arcs, closed and sampled by the highway
-builder's code (:mod:`sdc_gym.road.builtin_highways`); the smooth reference line goes
+A layout is a table of straights and circular arcs, closed and sampled by
+:mod:`sdc_gym.road.layout` (shared with the built-in highways); the smooth reference line goes
 through those samples, which rounds the curvature steps at the joints. The waypoints
 (``x y z yaw`` like the original file, z = 0, yaw the heading in [0, 2 pi)) are then
 taken on that line every ~0.64 m (sim) or ~1.1 m (site), the original files' spacings.
@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 
 from sdc_gym.geometry.reference_line import ReferenceLine
-from sdc_gym.road.builtin_highways import _closing_lengths, _sample_layout, _Segment
+from sdc_gym.road.layout import Segment, closing_lengths, sample_layout
 from sdc_gym.road.track_map import TrackFormatError, TrackMap, load_track
 
-_DEFAULT_LAYOUT: tuple[_Segment, ...] = (
+_DEFAULT_LAYOUT: tuple[Segment, ...] = (
     ("straight", 400.0), ("arc", 240.0, 45.0), ("straight", None), ("arc", 55.0, 90.0),
     ("straight", 340.0), ("arc", 500.0, -25.0), ("arc", 320.0, 70.0), ("straight", None),
     ("arc", 160.0, 60.0), ("straight", 430.0), ("arc", 900.0, 20.0), ("straight", 300.0),
@@ -44,7 +44,7 @@ _DEFAULT_STOP_LINES: tuple[tuple[int, float], ...] = (
     (0, 230.0), (2, 310.0), (2, 1080.0), (4, 190.0), (7, 820.0), (9, 260.0), (13, 150.0),
     (16, 240.0),
 )
-_SITE_LAYOUT: tuple[_Segment, ...] = (
+_SITE_LAYOUT: tuple[Segment, ...] = (
     ("straight", None), ("arc", 6.5, 90.0), ("straight", None), ("arc", 7.5, 90.0),
     ("straight", 12.0), ("arc", 7.0, 90.0), ("straight", 3.0), ("arc", 8.0, 90.0),
 )
@@ -68,9 +68,9 @@ SITE_FOCAL_LENGTH_Y_PX = 1353.84
 BUILTIN_TRACKS: tuple[str, ...] = ("default", "site")
 
 
-def _segment_starts(layout: tuple[_Segment, ...]) -> list[float]:
+def _segment_starts(layout: tuple[Segment, ...]) -> list[float]:
     """Arc length along the layout at the start of each segment (free straights solved)."""
-    free = iter(_closing_lengths(layout))
+    free = iter(closing_lengths(layout))
     starts = [0.0]
     for segment in layout[:-1]:
         if segment[0] == "straight":
@@ -83,7 +83,7 @@ def _segment_starts(layout: tuple[_Segment, ...]) -> list[float]:
 
 def _track_from_layout(
     name: str,
-    layout: tuple[_Segment, ...],
+    layout: tuple[Segment, ...],
     stop_lines: tuple[tuple[int, float], ...],
     *,
     shape_spacing: float,
@@ -92,7 +92,7 @@ def _track_from_layout(
     is_site: bool,
     focal_lengths: tuple[float, float] | None = None,
 ) -> TrackMap:
-    points = _sample_layout(layout, shape_spacing)
+    points = sample_layout(layout, shape_spacing)
     offset = origin_margin - points.min(axis=0)
     reference = ReferenceLine(points + offset)
     starts = _segment_starts(layout)

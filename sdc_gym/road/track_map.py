@@ -40,18 +40,20 @@ from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.highway_map import MapFormatError
+from sdc_gym.units import KMH_TO_MPS
 
 # --- Lights (the original simulator; spec: poles about 24 m past their stop lines) ---------
 LIGHT_POLE_OFFSET_M = 24.0
 # The housing hangs over the driven lane (d = 0): straight ahead of the ego's camera.
 LIGHT_LATERAL_OFFSET_M = 0.0
-# Height of the housing centre above the road: a 1.95 m housing (spec) with its bottom at
-# about 4.5 m, the usual clearance of an overhead signal.
-LIGHT_HOUSING_HEIGHT_M = 5.5
+LIGHT_CENTER_HEIGHT_M = 5.5
+"""Height of a light's housing centre above the road, m: a 1.95 m housing (spec) with its
+bottom at about 4.5 m, the usual clearance of an overhead signal. The one definition: the
+camera (:mod:`sdc_gym.sensors.track_camera`) is pitched to keep such a light in view."""
 # The site lot (~65 m around) has no room for a light 24 m on; the data do not give the
 # site light's position. Chosen: a light on a stand a few metres past the stop line.
 SITE_LIGHT_POLE_OFFSET_M = 6.0
-SITE_LIGHT_HOUSING_HEIGHT_M = 3.0
+SITE_LIGHT_CENTER_HEIGHT_M = 3.0
 
 # --- Camera (spec): image size of both configs, the seed team's sim focal lengths ---------
 DEFAULT_IMAGE_WIDTH_PX = 800
@@ -60,9 +62,8 @@ DEFAULT_FOCAL_LENGTH_X_PX = 2574.0
 DEFAULT_FOCAL_LENGTH_Y_PX = 2744.0
 
 # --- Road and speed -------------------------------------------------------------------------
-_KMH_TO_MPS = 1000.0 / 3600.0
-SIM_SPEED_LIMIT_MPS = 40.0 * _KMH_TO_MPS
-SITE_SPEED_LIMIT_MPS = 10.0 * _KMH_TO_MPS
+SIM_SPEED_LIMIT_MPS = 40.0 * KMH_TO_MPS
+SITE_SPEED_LIMIT_MPS = 10.0 * KMH_TO_MPS
 # The simulator's path runs in the middle lane of the highway world's 3 x 4 m carriageway
 # (measured: 4.9..6.6 m right of the highway's centre line), so both road edges are ~6 m away.
 SIM_ROAD_HALF_WIDTH_M = 6.0
@@ -243,7 +244,7 @@ class TrackMap:
 
         if light_pole_offset_m is None:
             light_pole_offset_m = SITE_LIGHT_POLE_OFFSET_M if is_site else LIGHT_POLE_OFFSET_M
-        height = SITE_LIGHT_HOUSING_HEIGHT_M if is_site else LIGHT_HOUSING_HEIGHT_M
+        height = SITE_LIGHT_CENTER_HEIGHT_M if is_site else LIGHT_CENTER_HEIGHT_M
         light_s = reference.wrap_s(stop_s + light_pole_offset_m)
         light_xy = reference.to_xy(light_s, np.full(len(light_s), LIGHT_LATERAL_OFFSET_M))
         light_xy = light_xy.reshape(-1, 2)

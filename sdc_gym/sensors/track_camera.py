@@ -21,9 +21,11 @@ The horizon (points far ahead at camera height) lies on row ``cy + fy tan(pitch)
 
 Defaults match the original: an 800 x 600 image and the seed team's focal lengths
 fx = 2574, fy = 2744 px: a narrow view, 17.7 deg wide and 12.5 deg tall. The camera is
-pitched up 0.10 rad (5.7 deg) so that a light centred 5 m above the ground
-(:data:`LIGHT_CENTER_HEIGHT_M`), with its pole 24 m past the stop line, stays fully in view
-from 150 m down to about 22 m, i.e. while the car waits at the stop line; the horizon is
+pitched up 0.10 rad (5.7 deg) so that a light centred 5.5 m above the ground
+(:data:`~sdc_gym.road.track_map.LIGHT_CENTER_HEIGHT_M`, the track's one definition), with
+its pole 24 m past the stop line, stays fully in view from 150 m down to about 24 m
+(camera to light, along the ground), i.e. while the car waits at the stop line: with the
+sim car's front bumper on the line the camera is 26.5 m from the light. The horizon is
 then near the bottom of the image (row 575 of 600). The ``training`` preset is the same
 camera at a quarter of the resolution (200 x 150, intrinsics x 0.25).
 
@@ -72,6 +74,9 @@ from numpy.typing import ArrayLike, NDArray
 from sdc_gym.config import ConfigError, resolve_config
 from sdc_gym.lights.traffic_lights import GREEN, RED, VALID_STATES, YELLOW
 
+# Re-exported: scenes and benchmarks place lights at the track's one housing height.
+from sdc_gym.road.track_map import LIGHT_CENTER_HEIGHT_M as LIGHT_CENTER_HEIGHT_M
+
 # --- the seed team's / original's camera ---------------------------------------------------
 ORIGINAL_WIDTH_PX = 800
 ORIGINAL_HEIGHT_PX = 600
@@ -81,7 +86,7 @@ TRAINING_SCALE = 0.25  # 800 x 600 -> 200 x 150
 
 DEFAULT_MOUNT_HEIGHT_M = 1.5  # roof-line camera on a sedan
 DEFAULT_MOUNT_FORWARD_M = 1.5  # behind the windshield, ahead of the reference point
-DEFAULT_PITCH_RAD = 0.10  # up, keeps a 5 m high light in view from its stop line
+DEFAULT_PITCH_RAD = 0.10  # up, keeps a 5.5 m high light in view from its stop line
 DEFAULT_MAX_RANGE_M = 150.0
 DEFAULT_BRIGHTNESS_JITTER = 0.2  # gain in [0.8, 1.2]
 DEFAULT_NOISE_SIGMA = 4.0  # 0-255 levels
@@ -90,7 +95,6 @@ DEFAULT_NOISE_SIGMA = 4.0  # 0-255 levels
 LIGHT_HOUSING_WIDTH_M = 1.0
 LIGHT_HOUSING_HEIGHT_M = 1.95
 LIGHT_HOUSING_DEPTH_M = 0.5
-LIGHT_CENTER_HEIGHT_M = 5.0  # suggested housing centre height above the ground
 LAMP_SPACING_M = LIGHT_HOUSING_HEIGHT_M / 3.0  # centre to centre, red top .. green bottom
 LAMP_RADIUS_M = 0.25
 MIN_LAMP_RADIUS_PX = 0.75  # a lamp always covers at least the pixel under its centre
