@@ -144,14 +144,15 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
 
 
 def probe_env(env_id: str, env_config: dict[str, Any]) -> tuple[Any, IncidentRules]:
-    """The env's road (for the incident map, ``None`` without one) and incident rules.
+    """The env's road or track (for the incident map, ``None`` without one) and rules.
 
     Also validates the config before any worker starts: a bad key fails here, once.
     """
     env = gym.make(env_id, config=env_config)
     try:
         unwrapped = env.unwrapped
-        return getattr(unwrapped, "road", None), getattr(unwrapped, "rules", IncidentRules())
+        road = getattr(unwrapped, "road", None) or getattr(unwrapped, "track", None)
+        return road, getattr(unwrapped, "rules", IncidentRules())
     finally:
         env.close()
 

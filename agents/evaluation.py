@@ -306,8 +306,44 @@ def _run_parallel(specs: Sequence[EpisodeSpec], workers: int, display: _Progress
         queue.close()
 
 
+def incident_kinds(episodes: Iterable[dict[str, Any]]) -> tuple[str, ...]:
+    """The shared incident kinds, then any env-specific ones the episodes report (the track
+    loop's ``red_light``), in the order first seen."""
+    kinds = dict.fromkeys(INCIDENT_KINDS)
+    for episode in episodes:
+        kinds.update(dict.fromkeys(episode["incidents"]))
+    return tuple(kinds)
+
+
+def _has_stop_lines(runs: Sequence[dict[str, Any]]) -> bool:
+    return any("stops" in run for run in runs)
+
+
+def _track_columns(runs: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    """Stop-line and tracking figures of track episodes (see TrackLoop-v0's summary).
+
+    ``stop_short_max_m`` is the largest distance a stop ended *before* its line (the
+    stack should stop within 2 m), ``max_overshoot`` the largest past it.
+    """
+    stops = [stop for run in runs for stop in run.get("stops", [])]
+    return {
+        "red_light_violations": sum(run.get("red_light_violations", 0) for run in runs),
+        "stops": len(stops),
+        "stop_short_max_m": max((-stop["offset_m"] for stop in stops), default=None),
+        "max_overshoot": max((run.get("max_overshoot", 0.0) for run in runs), default=0.0),
+        "rms_cross_track_error": max(run.get("rms_cross_track_error", 0.0) for run in runs),
+        "max_cross_track_error": max(run.get("max_cross_track_error", 0.0) for run in runs),
+        "max_lateral_acceleration": max(run.get("max_lateral_acceleration", 0.0)
+                                        for run in runs),
+    }
+
+
 def aggregate(episodes: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
-    """One row per agent: laps, lap times, speed, distance without incident, incidents."""
+    """One row per agent: laps, lap times, speed, distance without incident, incidents;
+    on a track with stop lines also red lights, stops and tracking (:func:`_track_columns`,
+    the worst episode's value for the RMS cross-track error)."""
+    episodes = list(episodes)
+    kinds = incident_kinds(episodes)
     by_agent: dict[str, list[dict[str, Any]]] = {}
     for episode in episodes:
         by_agent.setdefault(episode["agent"], []).append(episode)
@@ -323,13 +359,15 @@ def aggregate(episodes: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
             "mean_speed_mph": float(np.mean([run["mean_speed_mph"] for run in runs])),
             "longest_miles_without_incident": max(
                 run["longest_distance_without_incident"] for run in runs) / METERS_PER_MILE,
-            "incidents": {kind: sum(run["incidents"][kind] for run in runs)
-                          for kind in INCIDENT_KINDS},
+            "incidents": {kind: sum(run["incidents"].get(kind, 0) for run in runs)
+                          for kind in kinds},
             "max_acceleration": max(run["max_acceleration"] for run in runs),
             "max_jerk": max(run["max_jerk"] for run in runs),
             "success_rate": float(np.mean([run["is_success"] for run in runs])),
             "wall_time": sum(run["wall_time"] for run in runs),
         })
+        if _has_stop_lines(runs):
+            rows[-1].update(_track_columns(runs))
     return rows
 
 
@@ -361,19 +399,25 @@ def write_results(output: Path, episodes: list[dict[str, Any]],
 
     Traces are left out (see :func:`write_traces`); ``incident_log`` is in the JSON only.
     """
+    kinds = incident_kinds(episodes)
     columns = ["agent", "env_id", "seed", "laps", "lap_times", "mean_lap_time", "distance",
                "time", "mean_speed_mph", "longest_distance_without_incident",
-               *[f"incidents_{kind}" for kind in INCIDENT_KINDS], "max_acceleration",
+               *[f"incidents_{kind}" for kind in kinds], "max_acceleration",
                "max_jerk", "max_raw_acceleration", "max_raw_jerk", "is_success",
                "termination_reason", "env_steps", "wall_time"]
+    if _has_stop_lines(episodes):
+        columns += ["red_light_violations", "stop_count", "max_overshoot",
+                    "rms_cross_track_error", "max_cross_track_error", "max_lateral_acceleration"]
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=columns, extrasaction="ignore")
     writer.writeheader()
     for episode in episodes:
         flat = dict(episode)
         flat["lap_times"] = " ".join(f"{t:.3f}" for t in episode["lap_times"])
-        for kind in INCIDENT_KINDS:
-            flat[f"incidents_{kind}"] = episode["incidents"][kind]
+        for kind in kinds:
+            flat[f"incidents_{kind}"] = episode["incidents"].get(kind, 0)
+        if "stops" in episode:
+            flat["stop_count"] = len(episode["stops"])
         writer.writerow(flat)
     atomic_write_text(output / "episodes.csv", buffer.getvalue())
     atomic_write_text(output / "summary.json",
@@ -424,20 +468,30 @@ def results_table(rows: list[dict[str, Any]], title: str) -> Any:
     from rich.table import Table
 
     table = Table(title=title)
+    kinds = list(dict.fromkeys(kind for row in rows for kind in row["incidents"]))
+    track = any("stops" in row for row in rows)
+    extra = ("stops", "short of line m", "overshoot m", "CTE rms m", "max lat acc") if track \
+        else ()
     for header in ("agent", "laps", "mean lap s", "best lap s", "mean mph",
-                   "miles no incident", *INCIDENT_KINDS, "max acc", "max jerk"):
+                   "miles no incident", *kinds, "max acc", "max jerk", *extra):
         table.add_column(header, justify="left" if header == "agent" else "right")
 
-    def seconds(value: float | None) -> str:
-        return "-" if value is None else f"{value:.1f}"
+    def number(value: float | None, digits: int) -> str:
+        return "-" if value is None else f"{value:.{digits}f}"
 
     for row in rows:
-        table.add_row(
-            row["agent"], str(row["laps"]), seconds(row["mean_lap_time"]),
-            seconds(row["best_lap_time"]), f"{row['mean_speed_mph']:.2f}",
+        cells = [
+            row["agent"], str(row["laps"]), number(row["mean_lap_time"], 1),
+            number(row["best_lap_time"], 1), f"{row['mean_speed_mph']:.2f}",
             f"{row['longest_miles_without_incident']:.2f}",
-            *[str(row["incidents"][kind]) for kind in INCIDENT_KINDS],
-            f"{row['max_acceleration']:.2f}", f"{row['max_jerk']:.2f}")
+            *[str(row["incidents"].get(kind, 0)) for kind in kinds],
+            f"{row['max_acceleration']:.2f}", f"{row['max_jerk']:.2f}"]
+        if track:
+            cells += [str(row.get("stops", "-")), number(row.get("stop_short_max_m"), 2),
+                      number(row.get("max_overshoot"), 2),
+                      number(row.get("rms_cross_track_error"), 3),
+                      number(row.get("max_lateral_acceleration"), 2)]
+        table.add_row(*cells)
     return table
 
 

@@ -43,6 +43,7 @@ KIND_STYLE: dict[str, tuple[str, str]] = {
     "speed": ("o", "tab:blue"),
     "lane": ("s", "tab:green"),
     "off_road": ("D", "tab:brown"),
+    "red_light": ("P", "crimson"),
 }
 """Marker and colour of each incident kind on the map."""
 
@@ -153,15 +154,22 @@ def lap_time_figure(episodes: Iterable[dict[str, Any]]) -> Figure:
 
 
 def _road_lines(road: Any, spacing: float = 2.0) -> list[tuple[NDArray[np.float64], float]]:
-    """Closed (x, y) polylines of the centre line (d = 0), the lane lines and the edge."""
+    """Closed (x, y) polylines from the inner edge to the outer one, with their d.
+
+    A highway (``lane_count``, ``lane_width``): the centre line (d = 0, the inner edge), the
+    lane lines and the outer edge. A track (``road_half_width_m``): both edges around the
+    path, which is the centre line (d = 0).
+    """
     reference = getattr(road, "reference", None)
     if reference is None:  # only waypoints: the centre line
         xy = np.asarray(road.waypoints, dtype=np.float64)[:, :2]
         return [(np.vstack([xy, xy[:1]]), 0.0)]
     count = max(int(np.ceil(road.length / spacing)), 64)
     s = np.linspace(0.0, road.length, count + 1)  # s = length closes the loop
-    return [(reference.to_xy(s, k * road.lane_width), k * road.lane_width)
-            for k in range(road.lane_count + 1)]
+    half = getattr(road, "road_half_width_m", None)
+    offsets = ([-half, 0.0, half] if half is not None
+               else [k * road.lane_width for k in range(road.lane_count + 1)])
+    return [(reference.to_xy(s, d), d) for d in offsets]
 
 
 def incident_map_figure(road: Any, episodes: Sequence[dict[str, Any]],
@@ -182,30 +190,37 @@ def incident_map_figure(road: Any, episodes: Sequence[dict[str, Any]],
     axes = np.atleast_1d(figure.subplots(rows, columns, squeeze=False)).ravel()
     lines = _road_lines(road)
     outer = max(d for _, d in lines)
+    inner_d = lines[0][1]
     for ax, agent in zip(axes, agents, strict=False):
         if len(lines) > 1:  # the road surface between the centre line and the edge
             inner, edge = lines[0][0], lines[-1][0]
             ring = np.vstack([inner, edge[::-1]])
             ax.fill(ring[:, 0], ring[:, 1], color="0.92", linewidth=0)
         for xy, d in lines:
-            if d == 0.0:
+            if d == 0.0 and d != inner_d:  # a track's path between its edges
+                ax.plot(xy[:, 0], xy[:, 1], color="silver", linewidth=0.6, linestyle="--")
+            elif d == 0.0:
                 ax.plot(xy[:, 0], xy[:, 1], color="goldenrod", linewidth=1.0)
-            elif d == outer:
+            elif d in (outer, inner_d):
                 ax.plot(xy[:, 0], xy[:, 1], color="dimgray", linewidth=1.0)
             else:
                 ax.plot(xy[:, 0], xy[:, 1], color="silver", linewidth=0.6, linestyle="--")
         start = getattr(road, "start_s", None)
         if start is not None and getattr(road, "reference", None) is not None:
-            x, y = road.reference.to_xy(start, road.start_d)
+            x, y = road.reference.to_xy(start, getattr(road, "start_d", 0.0))
             ax.plot([x], [y], marker="|", markersize=14, color="black", linestyle="none",
                     label="start")
+        stop_lines = getattr(road, "stop_lines_xy", None)
+        if stop_lines is not None and len(stop_lines):
+            ax.plot(stop_lines[:, 0], stop_lines[:, 1], marker="_", markersize=12,
+                    color="black", linestyle="none", label="stop lines")
         log = [entry for episode in by_agent.get(agent, [])
                for entry in episode.get("incident_log", [])]
-        for kind in INCIDENT_KINDS:
+        for kind in dict.fromkeys([*INCIDENT_KINDS, *(entry["kind"] for entry in log)]):
             points = [(entry["x"], entry["y"]) for entry in log if entry["kind"] == kind]
             if not points:
                 continue
-            marker, color = KIND_STYLE[kind]
+            marker, color = KIND_STYLE.get(kind, ("*", "black"))
             xy = np.asarray(points, dtype=np.float64)
             ax.scatter(xy[:, 0], xy[:, 1], marker=marker, color=color, s=40, zorder=3,
                        edgecolors="black", linewidths=0.4, label=f"{kind} ({len(points)})")

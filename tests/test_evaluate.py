@@ -137,3 +137,47 @@ def test_evaluate_rejects_bad_files(tmp_path, monkeypatch):
     a_file.write_text("")
     with pytest.raises(SystemExit):
         evaluate.main(["--output", str(a_file)])
+
+
+def _track_episode(agent: str, seed: int, stops: list[float], red: int) -> dict:
+    """A track-loop episode summary as TrackLoop-v0 writes it (only the fields used)."""
+    return {
+        "agent": agent, "seed": seed, "laps": 1, "lap_times": [600.0 + seed],
+        "mean_speed_mph": 22.0, "longest_distance_without_incident": 7000.0,
+        "incidents": {"collision": 0, "acceleration": 0, "jerk": 0, "speed": 0, "lane": 0,
+                      "off_road": 0, "red_light": red},
+        "max_acceleration": 1.0, "max_jerk": 0.5, "is_success": True, "wall_time": 1.0,
+        "red_light_violations": red, "max_overshoot": max([0.0, *stops]),
+        "stops": [{"line": i, "time": 10.0 * i, "offset_m": offset, "light_state": 0,
+                   "overshoot_m": max(offset, 0.0)} for i, offset in enumerate(stops)],
+        "rms_cross_track_error": 0.05 + 0.01 * seed, "max_cross_track_error": 0.3,
+        "max_lateral_acceleration": 2.0 + seed,
+    }
+
+
+def test_aggregate_reports_red_lights_and_stop_accuracy_on_a_track():
+    from agents.evaluation import aggregate, results_table
+
+    episodes = [_track_episode("dbw", 0, [-1.5, -0.4], 0), _track_episode("dbw", 1, [0.3], 1)]
+    (row,) = aggregate(episodes)
+    assert row["incidents"]["red_light"] == 1 and row["red_light_violations"] == 1
+    assert row["stops"] == 3
+    assert row["stop_short_max_m"] == pytest.approx(1.5)  # the stop 1.5 m before its line
+    assert row["max_overshoot"] == pytest.approx(0.3)
+    assert row["rms_cross_track_error"] == pytest.approx(0.06)  # the worse episode
+    assert row["max_lateral_acceleration"] == pytest.approx(3.0)
+    table = results_table([row], "track")
+    headers = [column.header for column in table.columns]
+    assert "red_light" in headers and "short of line m" in headers
+
+
+def test_highway_rows_have_no_track_columns():
+    from agents.evaluation import aggregate
+
+    episode = _track_episode("lane_keeping", 0, [], 0)
+    for key in ("stops", "red_light_violations", "max_overshoot", "rms_cross_track_error",
+                "max_cross_track_error", "max_lateral_acceleration"):
+        episode.pop(key)
+    episode["incidents"].pop("red_light")
+    (row,) = aggregate([episode])
+    assert "stops" not in row and "red_light" not in row["incidents"]
