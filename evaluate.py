@@ -50,8 +50,12 @@ from sdc_gym.units import METERS_PER_MILE
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
 DEFAULT_AGENTS: tuple[str, ...] = ("fsm_conservative", "fsm_bold", "lane_keeping")
-"""Agents compared when ``--agents`` is not given: the seed's planner in both styles and
-the lane-keeping baseline."""
+"""Agents compared on the highway when ``--agents`` is not given: the seed's planner in both
+styles and the lane-keeping baseline."""
+DEFAULT_TRACK_AGENTS: tuple[str, ...] = ("dbw_ground_truth", "dbw_cnn")
+"""Agents compared on the track loop when ``--agents`` is not given: the drive-by-wire stack
+with the env's light states and with the committed CNN on the camera image."""
+TRACK_ENVS = ("sdc_gym/TrackLoop-v0",)
 DEFAULT_EPISODES = 3
 SECONDS_PER_LAP = 1000.0
 """``max_duration`` per lap when the config does not set one (endurance and multi-lap runs
@@ -79,10 +83,11 @@ def load_config(path: Path | None) -> tuple[str | None, dict[str, Any]]:
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--agents", nargs="+", default=list(DEFAULT_AGENTS),
+    parser.add_argument("--agents", nargs="+", default=None,
                         choices=sorted(AGENTS), metavar="AGENT",
                         help=f"agents to compare, of: {', '.join(sorted(AGENTS))} "
-                             f"(default: {' '.join(DEFAULT_AGENTS)})")
+                             f"(default: {' '.join(DEFAULT_AGENTS)} on the highway, "
+                             f"{' '.join(DEFAULT_TRACK_AGENTS)} on the track loop)")
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
     parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
@@ -119,7 +124,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     args.output = Path(args.output)
     if args.output.exists() and not args.output.is_dir():
         parser.error(f"--output {args.output} exists and is not a folder")
-    args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
+    if args.agents is not None:
+        args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
         episodes = args.episodes or (1 if args.endurance else DEFAULT_EPISODES)
         first = args.seed or 0
@@ -161,6 +167,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     """Run the evaluation; returns the per-agent rows, episodes and files written."""
     args = parse_args(argv)
     env_id, env_config = env_settings(args)
+    if args.agents is None:
+        args.agents = list(DEFAULT_TRACK_AGENTS if env_id in TRACK_ENVS else DEFAULT_AGENTS)
     try:
         road, rules = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
@@ -169,7 +177,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
              for agent in args.agents for seed in args.seeds]
     console = Console()
     if not console.is_terminal:  # logs and CI: do not squeeze the table into 80 columns
-        console = Console(width=200)
+        console = Console(width=260)
 
     started = time.perf_counter()
     episodes = run_episodes(specs, workers=args.workers, progress=not args.no_progress)

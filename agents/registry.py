@@ -15,6 +15,8 @@ import gymnasium as gym
 from agents.highway.fsm import DrivingStyle
 from agents.highway.layered_agent import fsm_agent
 from agents.lane_keeping import LaneKeepingDriver
+from agents.track.dbw_agent import dbw_agent
+from agents.track.follower import FollowerParameters
 
 
 class Agent(Protocol):
@@ -34,6 +36,18 @@ AGENTS: dict[str, AgentFactory] = {
     # With Kalman tracking of every car (for the env's sensor noise).
     "fsm_conservative_kf": lambda env: fsm_agent(env, DrivingStyle.CONSERVATIVE, tracking=True),
     "fsm_bold_kf": lambda env: fsm_agent(env, DrivingStyle.BOLD, tracking=True),
+    # The track loop's drive-by-wire stack, by traffic light source: the env's ground truth
+    # (config observe_light_states), or the committed classifiers on the camera image
+    # (config camera: {enabled: true, preset: training}).
+    "dbw_ground_truth": lambda env: dbw_agent(env, "ground_truth", name="dbw_ground_truth"),
+    "dbw_cnn": lambda env: dbw_agent(env, "cnn", name="dbw_cnn"),
+    "dbw_crop": lambda env: dbw_agent(env, "crop", name="dbw_crop"),
+    # Node rates and follower variants, for the rates study (ground-truth lights).
+    "dbw_seed_rates": lambda env: dbw_agent(env, "ground_truth", rates="seed",
+                                            name="dbw_seed_rates"),
+    "dbw_original_follower": lambda env: dbw_agent(env, "ground_truth",
+                                                   follower=FollowerParameters(),
+                                                   name="dbw_original_follower"),
 }
 
 

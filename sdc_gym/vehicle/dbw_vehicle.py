@@ -99,8 +99,10 @@ class VehicleParameters:
         name: preset name ("sim", "site" or anything for custom cars).
         vehicle_mass: kg, empty car.
         fuel_capacity: US gallons of fuel on board (a full tank is assumed).
-        brake_deadband: the reference controller's deadband (a fraction of decel_limit
-            below which it does not brake); not used by the physics.
+        brake_deadband: m/s^2, the reference controller's deadband: a commanded
+            deceleration smaller than this is left to drag and rolling resistance rather
+            than the brakes (as the course's controllers compare it with the controller's
+            output in m/s^2); not used by the physics.
         decel_limit: m/s^2 (negative), the controller's deceleration limit.
         accel_limit: m/s^2, the controller's acceleration limit.
         wheel_radius: m, turns brake torque into brake force.
