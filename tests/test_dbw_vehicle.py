@@ -20,6 +20,7 @@ from sdc_gym.vehicle import (
     VehicleParameters,
     vehicle_parameters,
 )
+from sdc_gym.vehicle.manual_driver import braking_distance
 
 # Physics off: no drag, rolling resistance or creep (for closed-form kinematics).
 NO_RESISTANCE = {"drag_coefficient": 0.0, "rolling_resistance": 0.0, "creep_hold_torque": 0.0}
@@ -273,6 +274,51 @@ def test_manual_driver_runs_a_yellow_it_cannot_stop_for(oval):
     _, log = drive(oval, SIM_VEHICLE, seed=3, seconds=5.0, stop_line_s=10.0)
     assert log[-1, 0] > 30.0
     assert log[:, 2].min() > 0.9 * TARGET_SPEED * 0.92
+
+
+@pytest.mark.parametrize(("speed", "accel", "decel", "jerk", "lag"), [
+    (11.0, 0.0, 3.5, 3.0, 0.0),   # the ramp ends before rest
+    (11.0, 1.2, 3.5, 3.0, 0.1),   # from accelerating, with brake lag
+    (2.0, 0.0, 3.5, 3.0, 0.0),    # at rest during the ramp
+    (8.0, -2.0, 2.0, 3.0, 0.0),   # already braking at decel: no ramp
+])
+def test_braking_distance_matches_integrating_the_jerk_limited_pedal(speed, accel, decel,
+                                                                     jerk, lag):
+    # Hand case 1: T = 3.5 / 3 = 1.167 s, speed at its end 11 - 3 T^2 / 2 = 8.958 m/s,
+    # distance 11 T - 3 T^3 / 6 + 8.958^2 / 7 = 12.833 - 0.794 + 11.465 = 23.50 m, where
+    # the constant 3.5 m/s^2 alone would say 121 / 7 = 17.29 m.
+    dt, x, v, a, t = 1e-4, 0.0, speed, accel, 0.0
+    while v > 0.0:
+        if t >= lag:
+            a = max(a - jerk * dt, -decel)
+        x += v * dt + 0.5 * a * dt * dt
+        v += a * dt
+        t += dt
+    assert braking_distance(speed, accel, decel, jerk, lag) == pytest.approx(x, abs=1e-3)
+    if (speed, accel, lag) == (11.0, 0.0, 0.0):
+        assert x == pytest.approx(23.50, abs=0.01)
+    assert braking_distance(speed, 0.0, decel, 0.0) == pytest.approx(speed**2 / (2 * decel))
+
+
+def test_manual_driver_stops_for_a_line_only_when_it_can_and_then_before_it(oval):
+    # The line appears at 8 m/s, pedal at rest. The old rule (v^2 / 2 d <= 3.5 m/s^2 to
+    # the line) said "stop" from 13.1 m on but could not deliver it: the jerk-limited ramp
+    # adds ~4 m. Now the driver stops iff the jerk-limited distance at 3.5 m/s^2 fits
+    # before its rest point, and then rests before the line; otherwise it drives through.
+    style, car = DriverStyle(), SIM_VEHICLE
+    needed = braking_distance(TARGET_SPEED, 0.0, style.dilemma_decel, style.pedal_jerk)
+    outcomes = set()
+    for line_s in np.arange(12.0, 24.0, 0.5):
+        driver, log = drive(oval, car, seed=2, seconds=8.0, stop_line_s=float(line_s))
+        to_rest = line_s - car.wheel_base - style.front_overhang - driver.stop_gap
+        front = log[:, 0] + car.wheel_base + style.front_overhang
+        if needed <= to_rest:
+            assert front.max() < line_s and log[-1, 2] == 0.0, line_s
+            outcomes.add("stop")
+        else:
+            assert front.max() > line_s + 10.0, line_s
+            outcomes.add("go")
+    assert outcomes == {"stop", "go"}
 
 
 def test_manual_driver_is_deterministic_per_seed(oval):

@@ -234,3 +234,32 @@ def test_from_mapping():
         CameraConfig.from_mapping({"preset": "tiny"})
     with pytest.raises(ConfigError, match=r"camera: CameraConfig\.pitch_rad"):
         CameraConfig.from_mapping({"pitch_rad": 2.0})
+
+
+def test_distance_jitter_draws_the_light_as_if_nearer_or_farther():
+    # Only the apparent distance varies (no gain, no noise). The housing 50 m ahead at
+    # camera height drawn g times its size: its near face at Z = 50 - 0.25 g, rows
+    # 300 -+ 2744 * 0.975 g / Z, columns 400 -+ 2574 * 0.5 g / Z (as the 50 m box test for
+    # g = 1). g is the frame's first draw from the rng: uniform in [0.8, 1.2].
+    config = CameraConfig(pitch_rad=0.0, brightness_jitter=0.0, noise_sigma=0.0,
+                          distance_jitter=0.2)
+    camera = TrackCamera(config)
+    boxes = set()
+    for seed in range(4):
+        g = np.random.default_rng(seed).uniform(0.8, 1.2)
+        near = 50.0 - 0.25 * g
+        half_u, half_v = 2574 * 0.5 * g / near, 2744 * 0.975 * g / near
+        expected = (math.floor(400 - half_u), math.floor(300 - half_v),
+                    math.ceil(400 + half_u), math.ceil(300 + half_v))
+        image, [label] = camera.render_with_labels(0.0, 0.0, 0.0, [[51.5, 0.0, 1.5]],
+                                                   [math.pi], [RED],
+                                                   np.random.default_rng(seed))
+        assert label.bbox == expected
+        u_min, v_min, _, v_max = label.bbox
+        assert (image[v_min + 1:v_max - 1, u_min + 1] == HOUSING_RGB).all()  # left of lamps
+        boxes.add(label.bbox)
+    assert len(boxes) == 4  # a different apparent distance every frame
+    # Off by default: the un-jittered box of light_bounding_box, (374, 246, 426, 354).
+    assert CameraConfig().distance_jitter == 0.0
+    with pytest.raises(ValueError, match=r"distance_jitter must be a finite number in \[0, "):
+        CameraConfig(distance_jitter=0.5)

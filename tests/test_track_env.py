@@ -13,7 +13,7 @@ import yaml
 
 import sdc_gym  # noqa: F401
 from sdc_gym.config import ConfigError
-from sdc_gym.lights import GREEN, RED
+from sdc_gym.lights import GREEN, RED, YELLOW
 from sdc_gym.metrics.track_metrics import TRACK_INCIDENT_KINDS
 
 from .conftest import UDACITY
@@ -428,3 +428,204 @@ def test_track_metrics_count_every_pass_of_a_line_across_the_loop_end_in_any_chu
     assert [incident.kind for incident in single] == ["red_light"] * 3
     for incident, rear_s in zip(single, expected, strict=True):
         assert 0.0 < incident.time * 2.5 - rear_s <= 0.05 + 1e-9  # the first step past it
+
+
+# ------------------------------------------------------------------ review fixes
+def test_velocity_bound_is_the_cars_top_speed_and_start_speed_is_checked():
+    from sdc_gym.envs.track_loop import top_speed
+    from sdc_gym.vehicle import SIM_VEHICLE
+
+    # Sim car at full throttle, power limited: 90 kW / v = 0.40 v^2 + 0.015 * 1080 * 9.81.
+    roots = np.roots([0.40, 0.0, 0.015 * 1080 * 9.81, -90_000.0])
+    expected = float(max(roots.real[np.abs(roots.imag) < 1e-9]))
+    assert top_speed(SIM_VEHICLE) == pytest.approx(expected, abs=1e-9)
+    assert expected == pytest.approx(58.65, abs=0.01)
+    env = make(start_speed=58.6, steps_per_action=25,
+               incident_rules={"road_half_width": 1e4}).unwrapped
+    # Top speed + one frame of launch ((4000 + 400 / 0.335) / 1080 m/s^2) + 5 %.
+    bound = 1.05 * (expected + 0.02 * (4000.0 + 400.0 / 0.335) / 1080.0)
+    assert env.observation_space["velocity"].high[0] == pytest.approx(bound, rel=1e-6)
+    obs, _ = env.reset(seed=0)
+    for _ in range(100):
+        assert env.observation_space.contains(obs)
+        obs = env.step(act(1.0))[0]
+    with pytest.raises(ConfigError, match=r"'start_speed' must be in \[0, 58.64\] m/s"):
+        make(start_speed=150.0)
+    with pytest.raises(ConfigError, match="top speed is unbounded"):
+        make(vehicle_overrides={"drag_coefficient": 0.0, "rolling_resistance": 0.0})
+
+
+def test_velocity_stays_in_its_box_when_a_light_car_overshoots_its_top_speed():
+    # 5 kg and 20 kN: the first frame from rest gains (20000 + 400 / 0.335) / 5 * 0.02
+    # = 84.8 m/s, beyond the 60.8 m/s top speed: the launch term of the bound covers it.
+    env = make(vehicle_overrides={"vehicle_mass": 5.0, "max_drive_force": 20_000.0},
+               incident_rules={"road_half_width": 1e4}).unwrapped
+    obs, _ = env.reset(seed=0)
+    speeds = []
+    for _ in range(50):
+        obs = env.step(act(1.0))[0]
+        assert env.observation_space.contains(obs)
+        speeds.append(float(obs["velocity"][0]))
+    assert speeds[0] == pytest.approx((20_000.0 + 400.0 / 0.335) / 5.0 * 0.02, rel=1e-6)
+    assert speeds[0] > env.top_speed == pytest.approx(60.81, abs=0.01)
+    assert speeds[-1] == pytest.approx(env.top_speed, abs=0.01)
+
+
+def test_manual_frames_earn_no_reward_and_no_penalty():
+    # The human drives the first 4 s and pulls away at ~1.2 m/s^2, above the 0.5 m/s^2
+    # acceleration limit: incidents the metrics count but the agent is not charged for.
+    env = make(manual={"mode": "scripted", "periods": [[0.0, 4.0]]}, steps_per_action=10,
+               incident_rules={"max_acceleration": 0.5})
+    _, info = env.reset(seed=0)
+    assert info["manual_frames"] == 0
+    human_incidents = []
+    for _ in range(20):  # 20 x 0.2 s, all driven by the human
+        _, reward, _, _, info = env.step(act(0.0, 1000.0))
+        assert reward == 0.0 and info["manual_frames"] == 10
+        human_incidents += info["new_incidents"]
+    assert "acceleration" in human_incidents and info["speed"] > 2.0
+    progress = info["progress"]
+    rewards = []
+    for _ in range(10):  # the agent's full throttle: an acceleration incident of its own
+        _, reward, _, _, info = env.step(act(1.0))
+        assert info["manual_frames"] == 0
+        gained = (info["progress"] - progress) / (40 / 3.6 * 0.2)
+        penalty = -1.0 * len(info["new_incidents"])  # -1 each by default
+        assert set(info["new_incidents"]) <= {"acceleration", "jerk", "speed"}
+        assert reward == pytest.approx(gained + penalty)
+        rewards.append(penalty)
+        progress = info["progress"]
+    assert min(rewards) == -1.0
+
+
+def test_a_manual_period_inside_a_step_counts_only_the_agents_frames():
+    # Manual frames 5..14 (0.1 s .. 0.3 s): 5 in step 1, 5 in step 2 of 10 frames each.
+    # The same drive one frame per step rewards agent frames only; its sum / 10 is the
+    # 10-frame step's reward.
+    def rewards(frames):
+        env = make(manual={"mode": "scripted", "periods": [[0.1, 0.3]]},
+                   steps_per_action=frames, start_speed=5.0)
+        env.reset(seed=0)
+        out = [env.step(act(0.5))[1:5:3] for _ in range(30 // frames)]
+        return [reward for reward, _ in out], [info["manual_frames"] for _, info in out]
+
+    coarse, manual = rewards(10)
+    fine, fine_manual = rewards(1)
+    assert manual == [5, 5, 0] and sum(fine_manual) == 10
+    assert all(reward == 0.0 for reward, flag in zip(fine, fine_manual, strict=True) if flag)
+    for step in range(3):
+        assert coarse[step] == pytest.approx(sum(fine[10 * step:10 * step + 10]) / 10)
+    # Step 1: the agent's 5 frames at ~5 m/s, 0.5 m / (11.1 m/s * 0.2 s) = 0.225.
+    assert coarse[0] == pytest.approx(0.225, abs=0.01)
+
+
+def test_keys_that_would_be_ignored_and_wrong_types_are_config_errors():
+    cases = [
+        ({"manual": {"mode": "random", "periods": [[1, 2]]}},
+         r"'manual.periods' must be empty unless manual.mode is 'scripted'"),
+        ({"manual": {"periods": [[1, 2]]}}, r"'manual.periods' must be empty unless"),
+        ({"manual": {"mode": "scripted", "periods": [[1, 2]], "interval_s": [1.0, 2.0]}},
+         r"'manual.interval_s' must be left out unless manual.mode is 'random'"),
+        ({"camera": {"enabled": False, "preset": "tiny"}}, r"'preset' must be one of"),
+        ({"camera": {"enabled": False, "width": -5}}, r"CameraConfig\.width must be an int"),
+        ({"obstacles": {"positions": [[100.0, 0.0]], "max_offset_d": 3.0}},
+         r"'obstacles.max_offset_d' must be 0 unless obstacles are random"),
+        ({"obstacles": {"count": 2, "max_offset_d": 7.0}},
+         r"'obstacles.max_offset_d' must be in \[0, 6\] m"),
+        ({"obstacles": {"positions": [[100.0, 50.0]]}},
+         r"'obstacles.positions' must be \[s, d\] pairs on the road, d in \[-6, 6\] m"),
+        ({"speed_limit": "fast"}, r"'speed_limit' must be None or a number > 0 \(m/s\)"),
+        ({"start_s": "x"}, r"'start_s' must be None or a finite number"),
+        ({"start_d": 50.0}, r"'start_d' must be in \[-6, 6\] m \(on the road\), got 50.0"),
+        ({"vehicle": ["sim"]}, r"'vehicle' must be None or one of \['sim', 'site'\]"),
+        ({"track": str(UDACITY / "capstone" / "wp_yaw_const.csv"), "light_config": 5},
+         r"'light_config' must be None or the path \(str\)"),
+        ({"incident_rules": {"road_half_width": "wide"}}, r"'incident_rules.road_half_width'"),
+    ]
+    for config, message in cases:
+        with pytest.raises(ConfigError, match=message):
+            make(**config)
+
+
+def test_stop_lines_at_the_same_s_are_each_counted():
+    from sdc_gym.metrics.driving_metrics import IncidentRules
+    from sdc_gym.metrics.track_metrics import TrackMetrics
+    from sdc_gym.road.track_map import TrackMap
+
+    radius = 200.0  # a circle; lines at s = 100, 100 and 500 m
+    angle = np.linspace(0.0, 2 * np.pi, 2000, endpoint=False)
+    waypoints = np.column_stack([radius * np.cos(angle), radius * np.sin(angle),
+                                 np.zeros_like(angle), angle + np.pi / 2])
+    lines = [[radius * np.cos(s / radius), radius * np.sin(s / radius)]
+             for s in (100.0, 100.0, 500.0)]
+    track = TrackMap.from_waypoints("circle", waypoints, lines)
+    rules = IncidentRules(speed_limit=100.0, road_d_min=-6.0, road_d_max=6.0,
+                          straddle_bands=())
+    metrics = TrackMetrics(track, rules, front_offset_m=4.0)
+    s = np.arange(0.0, 0.9 * track.length, 0.2)
+    xy = track.reference.to_xy(s, np.zeros_like(s))
+    metrics.reset(*xy[0], 0.0, 0.0, 10.0)
+    red = np.full(3, RED, dtype=np.int8)
+    for start in range(1, len(s), 10):
+        part = slice(start, min(start + 10, len(s)))
+        n = part.stop - part.start
+        metrics.record(xy[part], s[part], np.zeros(n), np.full(n, 10.0), [0.0] * n, [red] * n)
+    assert metrics.red_light_violations == 3
+    assert [incident.value for incident in metrics.driving.incidents] == [0.0, 1.0, 2.0]
+    # Both lines at 100 m were crossed at the same step.
+    assert metrics.driving.incidents[0].step == metrics.driving.incidents[1].step
+
+
+def test_the_car_never_starts_with_a_stop_line_under_it():
+    capstone = UDACITY / "capstone"
+    env = make(track=str(capstone / "churchlot_with_cars.csv"),
+               light_config=str(capstone / "site_traffic_light_config.yaml"))
+    base = env.unwrapped
+    front = base.params.wheel_base + 1.0  # 3.85 m for the site car
+    [line_s] = base.track.stop_line_s  # 1.98 m from the first waypoint
+    # The front bumper starts 2 m behind the line (not across it, as from s = 0).
+    assert base.start_s == pytest.approx(line_s - front - 2.0 + base.track.length)
+    obs, info = env.reset(seed=0)
+    assert obs["next_stop_line"][0] == 0 == info["next_stop_line_front"]
+    assert obs["next_stop_line"][1] == pytest.approx(front + 2.0, abs=1e-4)
+    assert info["stop_line_distance_front"] == pytest.approx(2.0, abs=1e-9)
+    with pytest.raises(ConfigError, match=r"stop line 0 at s = 1.98 m lies between the rear "
+                                          r"axle and the front bumper"):
+        make(track=str(capstone / "churchlot_with_cars.csv"),
+             light_config=str(capstone / "site_traffic_light_config.yaml"), start_s=0.0)
+    # Driving on: the observation's line (ahead of the rear axle) is the metrics' line
+    # (ahead of the bumper) whenever it is not under the car.
+    controller = PursuitController(env, 2.5)
+    under_car = 0
+    for _ in range(2000):
+        obs, _, terminated, _, info = env.step(controller.act(obs))
+        line, distance = obs["next_stop_line"]
+        if distance >= front:
+            assert info["next_stop_line_front"] == line
+            assert info["stop_line_distance_front"] == pytest.approx(distance - front, abs=1e-3)
+        else:
+            under_car += 1
+        if terminated:
+            break
+    assert info["termination_reason"] == "laps_completed"
+    assert sum(info["summary"]["stop_line_crossings"].values()) == 1 and under_car > 0
+
+
+def test_per_light_timings():
+    env = make(lights={"timings": [[2.0, 1.0, 3.0]] + [[10.0, 3.0, 10.0]] * 7,
+                       "offsets_s": [0.0] * 8}, observe_light_states=True, steps_per_action=25)
+    lights = env.unwrapped.lights
+    assert lights.timings[0].cycle_s == 6.0 and lights.timings[1].cycle_s == 23.0
+    env.reset(seed=0)
+    states = [env.step(act(0.0, 1000.0))[0]["light_states"][:2].tolist() for _ in range(14)]
+    states = states[::2]  # at 0.5, 1.5, ..., 6.5 s (0.5 s per step), away from the changes
+    # Light 0: green 0-2 s, yellow 2-3 s, red 3-6 s, green again; light 1 green 0-10 s.
+    assert [row[0] for row in states] == [GREEN, GREEN, YELLOW, RED, RED, RED, GREEN]
+    assert all(row[1] == GREEN for row in states)
+    with pytest.raises(ConfigError, match=r"'lights.timings' must be None or 8 \[green_s, "):
+        make(lights={"timings": [[2.0, 1.0, 3.0]]})
+    with pytest.raises(ConfigError, match=r"'lights.timings' must be given without "
+                                          r"\['green_s'\]"):
+        make(lights={"timings": [[2.0, 1.0, 3.0]] * 8, "green_s": 5.0})
+    with pytest.raises(ConfigError, match=r"LightTiming.red_s must be a finite number > 0"):
+        make(lights={"timings": [[2.0, 1.0, -3.0]] * 8})

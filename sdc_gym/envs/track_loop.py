@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 from collections.abc import Mapping
 from typing import Any, ClassVar
 
@@ -14,7 +15,14 @@ from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.geometry.collision import boxes_overlap
-from sdc_gym.lights.traffic_lights import LIGHTS_DEFAULTS, RED, UNKNOWN, YELLOW, TrafficLights
+from sdc_gym.lights.traffic_lights import (
+    LIGHTS_DEFAULTS,
+    RED,
+    UNKNOWN,
+    YELLOW,
+    LightTiming,
+    TrafficLights,
+)
 from sdc_gym.metrics.driving_metrics import Incident, IncidentRules
 from sdc_gym.metrics.track_metrics import TRACK_INCIDENT_KINDS, TrackMetrics
 from sdc_gym.road.builtin_tracks import get_track_map
@@ -46,9 +54,14 @@ OBSTACLE_WIDTH_M = 1.8
 OBSTACLE_CLEARANCE_M = 30.0  # random obstacles stay this far (along s) from the start
 # Observation bounds for positions and distances (m); the tracks are a few km across.
 POSITION_BOUND_M = 1e6
-MAX_SPEED_BOUND_MPS = 100.0
-MAX_YAW_RATE_BOUND = 100.0  # rad/s
+# The velocity bound is the car's top speed plus one frame of launch acceleration (a proven
+# ceiling, see _speed_bound), plus this fraction for float32 rounding.
+VELOCITY_BOUND_MARGIN = 0.05
+# A default start keeps the front bumper this far (m, along the path) behind a stop line
+# that would otherwise lie under the car.
+START_LINE_MARGIN_M = 2.0
 MANUAL_MODES = ("off", "random", "scripted")
+LIGHT_PHASES = ("green_s", "yellow_s", "red_s")
 # Children drawn from the env's np_random at every reset, one per random component, so that
 # turning one component on or off (e.g. the camera) never changes the others.
 _RNG_STREAMS = ("lights", "obstacles", "manual_schedule", "manual_driver", "camera")
@@ -58,6 +71,51 @@ _SEED_BOUND = 2**63 - 1
 def _frames(seconds: float) -> int:
     """Physics frame index of a time in s (periods are applied at whole frames)."""
     return round(seconds / PHYSICS_DT)
+
+
+def _is_number(value: Any) -> bool:
+    """A finite real number (bools are not numbers here)."""
+    return (isinstance(value, int | float) and not isinstance(value, bool)
+            and math.isfinite(value))
+
+
+def top_speed(params: VehicleParameters) -> float:
+    """m/s, the speed where full throttle balances drag and rolling resistance (inf when
+    both are 0: nothing stops the car from speeding up).
+
+    The net force ``F_engine(v) + F_creep(v) - F_roll - drag v^2`` falls strictly with
+    ``v``, so the root is unique; it is found by bisection (a cubic in the power-limited
+    range: ``P / v = drag v^2 + F_roll``; 58.65 m/s for the sim car).
+    """
+    if params.drag_coefficient <= 0.0 and params.rolling_force <= 0.0:
+        return math.inf
+
+    def net(v: float) -> float:
+        return (params.engine_force(v) + params.creep_force(v) - params.rolling_force
+                - params.drag_coefficient * v * v)
+
+    low, high = 0.0, 1.0
+    while net(high) > 0.0:
+        low, high = high, 2.0 * high
+    for _ in range(200):
+        middle = 0.5 * (low + high)
+        if middle in (low, high):
+            break
+        low, high = (middle, high) if net(middle) > 0.0 else (low, middle)
+    return high
+
+
+def _speed_bound(params: VehicleParameters) -> float:
+    """m/s no speed can exceed from a start at or below :func:`top_speed`.
+
+    Below the top speed one explicit-Euler frame adds at most ``PHYSICS_DT`` times the
+    largest acceleration (full throttle plus idle creep at rest); above it the net force
+    is negative, so the speed falls. Hence ``top + PHYSICS_DT * a_launch`` is a ceiling
+    for every throttle, brake and actuator lag.
+    """
+    launch = (params.max_drive_force + params.creep_force_at_rest
+              - params.rolling_force) / params.total_mass
+    return top_speed(params) + PHYSICS_DT * max(launch, 0.0)
 
 
 class TrackLoopEnv(gym.Env):
@@ -114,7 +172,7 @@ class TrackLoopEnv(gym.Env):
     | key              | shape / space   | content                                          |
     |------------------|-----------------|--------------------------------------------------|
     | `pose`           | (3,)            | x, y (m, rear axle), yaw (rad, CCW from +x)      |
-    | `velocity`       | (1,)            | speed (m/s, >= 0)                                |
+    | `velocity`       | (1,)            | speed (m/s), in [0, velocity bound]              |
     | `yaw_rate`       | (1,)            | rad/s, positive turning left                     |
     | `dbw_enabled`    | Discrete(2)     | 1: the agent drives; 0: manual override          |
     | `next_stop_line` | (2,)            | index of the next stop line ahead (-1: none),    |
@@ -128,6 +186,23 @@ class TrackLoopEnv(gym.Env):
     ``dbw_enabled`` tells whether the *next* action will be applied. Light ``i`` belongs to
     stop line ``i``. The camera image is an observation, not the ``render()`` output.
 
+    Bounds. Every observation lies in ``observation_space``. The velocity bound
+    (:attr:`velocity_bound`) is derived from the car: its top speed at full throttle
+    (:func:`top_speed`: engine force = drag + rolling resistance, 58.65 m/s for the sim
+    car, 65.85 m/s for the site car) plus one frame of launch acceleration, which provably
+    no throttle, brake or lag can exceed (see :func:`_speed_bound`), plus 5 % for float32
+    rounding: 61.7 m/s (sim). Hence ``start_speed`` must not exceed the top speed, and
+    ``vehicle_overrides`` that zero both drag and rolling resistance (no top speed) are a
+    ``ConfigError``. The yaw-rate bound is that speed times the curvature at full lock.
+
+    Which stop line is next. ``next_stop_line`` is the next line ahead of the *rear
+    axle*. The metrics count a crossing when the *front bumper* passes a line, so while a
+    line is under the car (distance below ``wheel_base + 1`` m) it is still in the
+    observation although it has been crossed; ``info["next_stop_line_front"]`` and
+    ``info["stop_line_distance_front"]`` name the next line the bumper will cross (the
+    metrics' line) and its distance from the bumper. At every reset both name the same
+    line: the car never starts with a line under it (see Starting State).
+
     ## Rewards
 
     ``reward_progress * (metres gained along the path) / (speed_limit * step duration)``
@@ -135,17 +210,36 @@ class TrackLoopEnv(gym.Env):
     step, its penalty from ``reward_incident`` (collision and off_road -10, red_light -5,
     acceleration, jerk, speed and lane -1 by default).
 
+    Only the agent's own driving counts: physics frames driven by the human in a manual
+    override add no progress reward, and incidents that began on such a frame (at the
+    frame where the metrics place them) no penalty; a step driven by the human from
+    start to end earns 0. The metrics and the summary still record everything (they
+    measure the car, whoever drives). ``info["manual_frames"]`` says how many of the
+    step's physics frames the human drove (0 .. ``steps_per_action``; a period may begin
+    or end inside a step).
+
     ## Starting State
 
-    The car stands still (``start_speed``, default 0) at ``start_s`` (default: the track's
-    start) and ``start_d`` (default 0, on the path), facing along the path, with
+    The car stands still (``start_speed``, default 0) at ``start_s`` and ``start_d``
+    (default 0, on the path; within ``+-road_half_width``), facing along the path, with
     ``dbw_enabled`` true unless a manual period starts at 0 s.
 
+    No stop line may lie under the car (between the rear axle and the front bumper): it
+    would be crossed for the metrics and ahead for the observation. A ``start_s`` that
+    puts one there is a ``ConfigError`` naming the line and the valid positions. The
+    default ``start_s`` is the track's start, moved back, if a line lies under the car or
+    less than :data:`START_LINE_MARGIN_M` (2 m) ahead of its bumper, until the front bumper
+    is 2 m behind that line (the car then waits at the line like a car stopped there).
+    The built-in tracks need no move; the original site lot (``churchlot_with_cars.csv``,
+    its one stop line 1.98 m from the first waypoint) starts at s = 60.76 m of its 64.63 m
+    loop, the site car's bumper 2 m behind the line. :attr:`start_s` holds the result.
+
     Randomness: everything random (light phase offsets, random obstacles, the random
-    manual-override schedule, the human driver, the camera's brightness and noise) comes
-    from ``np_random``: at every reset one child generator per component is drawn from it,
-    so the same seed and actions give the same episode bit for bit, and switching one
-    component on or off (e.g. the camera) does not change the others.
+    manual-override schedule, the human driver, the camera's brightness, noise and
+    distance jitter) comes from ``np_random``: at every reset one child generator per
+    component is drawn from it, so the same seed and actions give the same episode bit
+    for bit, and switching one component on or off (e.g. the camera) does not change the
+    others.
 
     ## Episode End
 
@@ -166,27 +260,47 @@ class TrackLoopEnv(gym.Env):
     incident counts ``incidents_<kind>``) and telemetry: ``x``, ``y``, ``yaw``, ``s``,
     ``d``, ``cross_track_error`` (m, = d), ``speed_mph``, ``lateral_acceleration``
     (m/s^2), ``throttle``, ``brake_torque``, ``steering_wheel_angle`` (the actuators'
-    actual values), ``dbw_enabled``, ``next_stop_line``, ``stop_line_distance`` (m, from
-    the rear axle), ``light_state_ahead`` (that line's light, UNKNOWN without lights),
-    ``new_incidents``, ``is_success``, ``termination_reason``, ``summary`` (None until the
-    end).
+    actual values), ``dbw_enabled``, ``manual_frames`` (physics frames of this step the
+    human drove), ``next_stop_line``, ``stop_line_distance`` (m, from the rear axle; as
+    in the observation), ``next_stop_line_front`` and ``stop_line_distance_front`` (the
+    next line the front bumper will cross and its distance from the bumper, m; -1 and the
+    loop length without lines), ``light_state_ahead`` (the light of ``next_stop_line``,
+    UNKNOWN without lights), ``new_incidents``, ``is_success``, ``termination_reason``,
+    ``summary`` (None until the end).
 
     ## Rendering
 
     ``render_mode="rgb_array"`` or ``"human"``: a top-down view following the car
     (:mod:`sdc_gym.render.track_renderer`): road, stop lines, lights in their state,
-    obstacles, the car, and the agent's final waypoints if it hands them over with
-    :meth:`set_debug_path` (the original's ``drawline`` message).
+    obstacles, the car, and the agent's final waypoints when it gives them.
+
+    Final waypoints travel from the agent to the env, the opposite way to ``info`` (which
+    Gymnasium hands from the env to the agent), so the agent gives them with
+    ``env.unwrapped.set_debug_path(points)``: an (m, 2) array of map x, y in metres, the
+    original's ``drawline`` message. Call it whenever the path changes (e.g. after each
+    step); the render draws the latest points until they are replaced, cleared with
+    ``None`` or an empty array, or cleared by ``reset``. The env never reads them.
 
     ## Arguments
 
     ``gym.make("sdc_gym/TrackLoop-v0", config={...}, render_mode=None)``; unknown keys
     raise ``ConfigError`` listing the valid ones. See :attr:`DEFAULT_CONFIG` for every key
     with its unit; nested: ``lights`` (``green_s``, ``yellow_s``, ``red_s``, ``offsets_s``,
-    ``script``: see :class:`~sdc_gym.lights.traffic_lights.TrafficLights`), ``camera``
-    (``enabled``, ``preset`` "full" = the track's 800 x 600 camera or "training" = 200 x
-    150, and :class:`~sdc_gym.sensors.track_camera.CameraConfig` fields), ``obstacles``,
-    ``manual``, ``incident_rules``, ``reward_incident``.
+    ``script``: see :class:`~sdc_gym.lights.traffic_lights.TrafficLights`; or per-light
+    cycles with ``timings``: one ``[green_s, yellow_s, red_s]`` row per light, instead of
+    the three shared durations), ``camera`` (``enabled``, ``preset`` "full" = the track's
+    800 x 600 camera or "training" = 200 x 150, and
+    :class:`~sdc_gym.sensors.track_camera.CameraConfig` fields, e.g. ``distance_jitter``;
+    checked even when the camera is off), ``obstacles``, ``manual``, ``incident_rules``,
+    ``reward_incident``.
+
+    Keys that would be silently ignored are errors: ``manual.periods`` unless the mode is
+    ``"scripted"``, ``manual.interval_s`` / ``duration_s`` unless it is ``"random"``,
+    ``obstacles.max_offset_d`` unless obstacles are random (``count`` without
+    ``positions``), ``lights`` durations together with ``timings``. Keys whose default is
+    None are type-checked (``speed_limit`` and ``start_s`` numbers, ``light_config`` a
+    path, ``vehicle`` a preset name), obstacle positions and ``start_d`` must lie on the
+    road. All at construction.
 
     ## Version History
 
@@ -205,10 +319,13 @@ class TrackLoopEnv(gym.Env):
         "laps": 1,                    # laps for success
         "max_duration": 1200.0,       # s of simulated time before truncation
         "speed_limit": None,          # m/s; None: the track's (40 km/h sim, 10 km/h site)
-        "start_s": None,              # m along the path; None: the track's start
-        "start_d": 0.0,               # m, right of the path
-        "start_speed": 0.0,           # m/s
-        "lights": dict(LIGHTS_DEFAULTS),  # cycle (s), fixed offsets (s) or scripts per light
+        "start_s": None,              # m along the path; None: the track's start (moved
+                                      # back if a stop line would lie under the car)
+        "start_d": 0.0,               # m, right of the path, within +-road_half_width
+        "start_speed": 0.0,           # m/s, up to the car's top speed
+        # Cycle (s), fixed offsets (s) or scripts per light; "timings": None (every light
+        # cycles green_s, yellow_s, red_s) or one [green_s, yellow_s, red_s] row per light.
+        "lights": {**LIGHTS_DEFAULTS, "timings": None},
         "observe_light_states": False,    # add the ground-truth light states to observations
         "camera": {"enabled": False, **CAMERA_DEFAULTS},  # pinhole camera image observation
         "obstacles": {
@@ -247,13 +364,12 @@ class TrackLoopEnv(gym.Env):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
                              f"or None, got {render_mode!r}")
         self.render_mode = render_mode
+        self._given = dict(config or {})  # the user's own keys, to catch ignored ones
         require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
                 cfg["steps_per_action"])
         require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
         require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
-        require(cfg["start_speed"] >= 0, owner, "start_speed", ">= 0 m/s", cfg["start_speed"])
-        require(cfg["speed_limit"] is None or cfg["speed_limit"] > 0, owner, "speed_limit",
-                "None or > 0 m/s", cfg["speed_limit"])
+        self._check_optional_keys(owner)
 
         try:
             self.track: TrackMap = get_track_map(cfg["track"], cfg["light_config"])
@@ -263,22 +379,28 @@ class TrackLoopEnv(gym.Env):
         self.params = self._vehicle_parameters(owner)
         self.speed_limit = float(cfg["speed_limit"] if cfg["speed_limit"] is not None
                                  else track.speed_limit_mps)
+        self.top_speed = top_speed(self.params)
+        require(cfg["start_speed"] <= self.top_speed, owner, "start_speed",
+                f"in [0, {math.floor(100.0 * self.top_speed) / 100.0:.2f}] m/s (up to the "
+                f"{self.params.name!r} car's top speed at full throttle)", cfg["start_speed"])
         rules = cfg["incident_rules"]
         half_width = rules["road_half_width"]
-        require(half_width is None or half_width > 0, owner, "incident_rules.road_half_width",
-                "None or > 0 m", half_width)
+        require(half_width is None or (_is_number(half_width) and half_width > 0), owner,
+                "incident_rules.road_half_width", "None or a number > 0 (m)", half_width)
         self.road_half_width = float(half_width if half_width is not None
                                      else track.road_half_width_m)
+        require(abs(cfg["start_d"]) <= self.road_half_width, owner, "start_d",
+                f"in [{-self.road_half_width:g}, {self.road_half_width:g}] m (on the road)",
+                cfg["start_d"])
         try:
             self.rules = IncidentRules(
                 dt=PHYSICS_DT, max_acceleration=float(rules["max_acceleration"]),
                 max_jerk=float(rules["max_jerk"]), speed_limit=self.speed_limit,
                 road_d_min=-self.road_half_width, road_d_max=self.road_half_width,
                 straddle_bands=())
-            self.lights = TrafficLights.from_config(track.light_count, cfg["lights"],
-                                                    owner=f"{owner}.lights")
         except ValueError as error:
             raise ConfigError(f"{owner}: {error}") from None
+        self.lights = self._traffic_lights(owner)
         require(set(cfg["reward_incident"]) == set(TRACK_INCIDENT_KINDS), owner,
                 "reward_incident", f"a mapping with exactly the kinds {list(TRACK_INCIDENT_KINDS)}",
                 cfg["reward_incident"])
@@ -294,12 +416,15 @@ class TrackLoopEnv(gym.Env):
                                      - REAR_OVERHANG_M)
         self.vehicle = DBWVehicle(self.params)
         self.metrics = TrackMetrics(track, self.rules, self.front_offset)
+        self.start_s = self._start_s(owner)
         self.metadata = {**self.metadata,
                          "render_fps": round(1.0 / (PHYSICS_DT * self.steps_per_action))}
 
+        # The camera block is validated even when the camera is off (no silent typos).
+        camera_config = self._camera_config(config, owner)
         self.camera: TrackCamera | None = None
         if cfg["camera"]["enabled"]:
-            self.camera = TrackCamera(self._camera_config(config, owner))
+            self.camera = TrackCamera(camera_config)
 
         # Action bounds: float32 values, validated against exactly what the Box holds.
         max_brake = self.params.max_brake_force * self.params.wheel_radius
@@ -312,11 +437,17 @@ class TrackLoopEnv(gym.Env):
 
         big = np.float32(POSITION_BOUND_M)
         k = track.light_count
+        # Speed can never leave [0, velocity_bound] (see _speed_bound); the yaw rate is the
+        # speed times the curvature at full lock.
+        self.velocity_bound = (1.0 + VELOCITY_BOUND_MARGIN) * _speed_bound(self.params)
+        max_wheel = self.params.max_road_wheel_angle
+        yaw_rate_bound = (self.velocity_bound * math.tan(max_wheel) / self.params.wheel_base
+                          if max_wheel < 0.5 * math.pi else math.inf)
         observation: dict[str, spaces.Space[Any]] = {
             "pose": spaces.Box(np.array([-big, -big, -np.pi], dtype=np.float32),
                                np.array([big, big, np.pi], dtype=np.float32), dtype=np.float32),
-            "velocity": spaces.Box(0.0, MAX_SPEED_BOUND_MPS, shape=(1,), dtype=np.float32),
-            "yaw_rate": spaces.Box(-MAX_YAW_RATE_BOUND, MAX_YAW_RATE_BOUND, shape=(1,),
+            "velocity": spaces.Box(0.0, self.velocity_bound, shape=(1,), dtype=np.float32),
+            "yaw_rate": spaces.Box(-yaw_rate_bound, yaw_rate_bound, shape=(1,),
                                    dtype=np.float32),
             "dbw_enabled": spaces.Discrete(2),
             "next_stop_line": spaces.Box(np.array([-1.0, 0.0], dtype=np.float32),
@@ -346,6 +477,8 @@ class TrackLoopEnv(gym.Env):
         self._d_buffer = np.zeros(frames)
         self._speed_buffer = np.zeros(frames)
         self._lateral_buffer = [0.0] * frames
+        self._manual_buffer = [False] * frames  # which frames of the step the human drove
+        self._step_manual_frames = 0
         self._states_buffer: list[NDArray[np.int8]] = [self.lights.states] * frames
         self._buffers: tuple[Any, ...] = (
             self._xy_buffer, self._s_buffer, self._d_buffer, self._speed_buffer,
@@ -358,6 +491,21 @@ class TrackLoopEnv(gym.Env):
         self._state_ready = False
 
     # ------------------------------------------------------------------ configuration
+    def _check_optional_keys(self, owner: str) -> None:
+        """Keys whose default is None take any type in resolve_config: check them here."""
+        cfg = self.config
+        require(cfg["speed_limit"] is None or (_is_number(cfg["speed_limit"])
+                                               and cfg["speed_limit"] > 0),
+                owner, "speed_limit", "None or a number > 0 (m/s)", cfg["speed_limit"])
+        require(cfg["start_s"] is None or _is_number(cfg["start_s"]), owner, "start_s",
+                "None or a finite number (m along the path)", cfg["start_s"])
+        require(cfg["light_config"] is None or isinstance(cfg["light_config"], str | os.PathLike),
+                owner, "light_config", "None or the path (str) of a traffic-light YAML",
+                cfg["light_config"])
+        require(cfg["vehicle"] is None or isinstance(cfg["vehicle"], str), owner, "vehicle",
+                f"None or one of {sorted(VEHICLE_PRESETS)}", cfg["vehicle"])
+        require(cfg["start_speed"] >= 0, owner, "start_speed", ">= 0 m/s", cfg["start_speed"])
+
     def _vehicle_parameters(self, owner: str) -> VehicleParameters:
         cfg = self.config
         name = cfg["vehicle"]
@@ -374,9 +522,70 @@ class TrackLoopEnv(gym.Env):
             raise ConfigError(f"{owner}.vehicle_overrides: unknown key(s) {unknown}. "
                               f"Valid keys: {', '.join(fields)}")
         try:
-            return params.replace(**overrides) if overrides else params
+            params = params.replace(**overrides) if overrides else params
         except (TypeError, ValueError) as error:
             raise ConfigError(f"{owner}.vehicle_overrides: {error}") from None
+        if math.isinf(top_speed(params)):
+            # Nothing would hold the speed: no observation bound, no sensible car.
+            raise ConfigError(f"{owner}.vehicle_overrides: drag_coefficient and "
+                              f"rolling_resistance are both 0, so the car's top speed is "
+                              f"unbounded; make at least one of them > 0")
+        return params
+
+    def _traffic_lights(self, owner: str) -> TrafficLights:
+        """The lights from the ``lights`` block: shared or per-light (``timings``) cycles."""
+        lights = dict(self.config["lights"])
+        timings = lights.pop("timings")
+        key = f"{owner}.lights"
+        try:
+            if timings is None:
+                return TrafficLights.from_config(self.track.light_count, lights, owner=key)
+            count = self.track.light_count
+            shared = sorted(set(LIGHT_PHASES) & set(self._given.get("lights") or {}))
+            require(not shared, owner, "lights.timings",
+                    f"given without {shared} (timings replaces them)", timings)
+            ok = isinstance(timings, list | tuple) and len(timings) == count and all(
+                isinstance(row, list | tuple) and len(row) == len(LIGHT_PHASES)
+                and all(_is_number(value) for value in row) for row in timings)
+            require(ok, owner, "lights.timings",
+                    f"None or {count} [green_s, yellow_s, red_s] rows, one per light (s)",
+                    timings)
+            return TrafficLights(count, [LightTiming(*map(float, row)) for row in timings],
+                                 lights["offsets_s"], lights["script"])
+        except ConfigError:
+            raise
+        except ValueError as error:
+            raise ConfigError(f"{key}: {error}") from None
+
+    def _start_s(self, owner: str) -> float:
+        """Where the rear axle starts: never with a stop line under the car.
+
+        A stop line between the rear axle and the front bumper would already be crossed by
+        the bumper (the metrics' view) but still ahead of the rear axle (the observation's):
+        ``start_s`` given like that is a ConfigError; the default (the track's start) is
+        moved back until the front bumper is :data:`START_LINE_MARGIN_M` behind such a line.
+        """
+        track, given = self.track, self.config["start_s"]
+        reference = track.reference
+        start = float(reference.wrap_s(given if given is not None else track.start_s))
+        margin = 0.0 if given is not None else START_LINE_MARGIN_M
+        for _ in range(track.light_count + 1):
+            ahead = (track.stop_line_s - start) % track.length
+            under = np.flatnonzero(ahead < self.front_offset + margin)
+            if not len(under):
+                return start
+            line = int(under[np.argmax(ahead[under])])  # the farthest one under the car
+            line_s = float(track.stop_line_s[line])
+            behind = math.floor(100.0 * float(reference.wrap_s(line_s - self.front_offset)))
+            behind /= 100.0
+            require(given is None, owner, "start_s",
+                    f"a position with no stop line under the car: stop line {line} at "
+                    f"s = {line_s:.2f} m lies between the rear axle and the front bumper "
+                    f"({self.front_offset:g} m ahead); use start_s <= {behind:.2f} or "
+                    f"> {line_s:.6f} (mod the loop length {track.length:.6f} m)", given)
+            start = float(reference.wrap_s(line_s - self.front_offset - margin))
+        raise ConfigError(f"{owner}: the stop lines of track {track.name!r} leave no "
+                          f"{self.front_offset + margin:g} m gap to start the car in")
 
     def _camera_config(self, config: Mapping[str, Any] | None, owner: str) -> CameraConfig:
         """The track's camera (size, focal lengths) in the preset, with the user's fields."""
@@ -405,8 +614,17 @@ class TrackLoopEnv(gym.Env):
                 positions)
         require(not (positions and count and count != len(positions)), owner, f"{key}.count",
                 f"0 or len(positions) = {len(positions)} when positions are given", count)
-        require(obstacles["max_offset_d"] >= 0, owner, f"{key}.max_offset_d", ">= 0 m",
-                obstacles["max_offset_d"])
+        half_width = self.road_half_width
+        off_road = [p for p in positions if abs(p[1]) > half_width]
+        require(not off_road, owner, f"{key}.positions",
+                f"[s, d] pairs on the road, d in [{-half_width:g}, {half_width:g}] m "
+                f"(these are not: {off_road})", positions)
+        max_offset = obstacles["max_offset_d"]
+        require(0 <= max_offset <= half_width, owner, f"{key}.max_offset_d",
+                f"in [0, {half_width:g}] m (the road half width)", max_offset)
+        require(max_offset == 0 or (count and not positions), owner, f"{key}.max_offset_d",
+                "0 unless obstacles are random (count > 0 and no positions): it only "
+                "spreads random obstacles", max_offset)
         for size in ("length", "width"):
             require(obstacles[size] > 0, owner, f"{key}.{size}", "> 0 m", obstacles[size])
         require(positions or not count or self.track.length > 2 * OBSTACLE_CLEARANCE_M, owner,
@@ -430,11 +648,18 @@ class TrackLoopEnv(gym.Env):
         require(ordered, owner, "manual.periods", "sorted and not overlapping", periods)
         require(mode != "scripted" or bool(periods), owner, "manual.periods",
                 "non-empty when manual.mode is 'scripted'", periods)
+        require(mode == "scripted" or not periods, owner, "manual.periods",
+                f"empty unless manual.mode is 'scripted' (it is {mode!r}, which would "
+                f"ignore them)", periods)
+        given = self._given.get("manual") or {}
         for key in ("interval_s", "duration_s"):
             pair = manual[key]
-            good = (len(pair) == 2 and all(isinstance(v, int | float) for v in pair)
+            good = (len(pair) == 2 and all(_is_number(v) for v in pair)
                     and 0 < pair[0] <= pair[1])
             require(good, owner, f"manual.{key}", "[low, high] s with 0 < low <= high", pair)
+            require(mode == "random" or key not in given, owner, f"manual.{key}",
+                    f"left out unless manual.mode is 'random' (it is {mode!r}, which would "
+                    f"ignore it)", pair)
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None,
@@ -447,8 +672,7 @@ class TrackLoopEnv(gym.Env):
                 for name, value in zip(_RNG_STREAMS, seeds, strict=True)}
         self._camera_rng = rngs["camera"]
 
-        start_s = float(track.reference.wrap_s(
-            cfg["start_s"] if cfg["start_s"] is not None else track.start_s))
+        start_s = self.start_s
         start_d = float(cfg["start_d"])
         x, y = track.reference.to_xy(start_s, start_d).tolist()
         yaw = float(track.reference.heading(start_s))
@@ -461,6 +685,7 @@ class TrackLoopEnv(gym.Env):
         self._manual_frames = self._manual_schedule(rngs["manual_schedule"])
         self._manual_index = 0
         self._manual_frame_count = 0
+        self._step_manual_frames = 0
         self.driver = ManualDriver(self.params, rngs["manual_driver"])
         self.dbw_enabled = not self._manual_at(0)
         self._done_reason = ""
@@ -473,6 +698,7 @@ class TrackLoopEnv(gym.Env):
         if not self._state_ready:
             raise RuntimeError("call reset() before step()")
         throttle, brake, steering = self._read_action(action)
+        first_frame, s_start = self._frame, self._s
         frames = self._simulate(throttle, brake, steering)
         buffers = self._buffers
         if frames < self.steps_per_action:  # the episode ended inside the step
@@ -482,9 +708,16 @@ class TrackLoopEnv(gym.Env):
         incidents = self.metrics.record(*buffers, self._contact_ids(frames))
         self._update_stop_line()
 
-        reward = self._progress_scale * (driving.progress - progress_before)
+        # The agent earns only what happened while it drove: the human's frames (manual
+        # override) give no progress reward and no incident penalty.
+        gained = (driving.progress - progress_before if not self._step_manual_frames
+                  else self._agent_progress(s_start, frames))
+        reward = self._progress_scale * gained
+        manual = self._manual_buffer
         for incident in incidents:
-            reward += self._incident_penalty[incident.kind]
+            # Incident.step counts physics frames since reset, from 1.
+            if not (self._step_manual_frames and manual[incident.step - first_frame - 1]):
+                reward += self._incident_penalty[incident.kind]
         terminated = truncated = False
         if self._contact >= 0:
             terminated, self._done_reason = True, "collision"
@@ -544,19 +777,23 @@ class TrackLoopEnv(gym.Env):
         half_width = self.road_half_width
         has_obstacles = bool(self._obstacles_xy)
         self._contact = -1
+        self._step_manual_frames = 0
         s = self._s
         for frame in range(self.steps_per_action):
             if self._manual_frames:
                 self._update_mode()
             if self.dbw_enabled:
                 st = vehicle.step(throttle, brake, steering)
+                manual = False
             else:
-                self._manual_frame_count += 1
+                self._step_manual_frames += 1
                 st = vehicle.step(*self.driver.act(self.state, track.reference, self.speed_limit,
                                                    self._manual_stop_distance(s)))
+                manual = True
             self._frame += 1
             states_buf[frame] = lights.step(PHYSICS_DT)
             (s,), (d,) = project([[st.x, st.y]], [s + st.speed * PHYSICS_DT])
+            self._manual_buffer[frame] = manual
             xy[frame, 0] = st.x
             xy[frame, 1] = st.y
             s_buf[frame] = s
@@ -565,12 +802,27 @@ class TrackLoopEnv(gym.Env):
             lateral[frame] = st.lateral_acceleration
             self._s, self._d = s, d
             if has_obstacles and self._touches_obstacle():
-                return frame + 1
+                break
             if abs(d) > half_width:
-                return frame + 1
-        if self._manual_frames:
-            self._update_mode()  # the observation tells whether the next action counts
-        return self.steps_per_action
+                break
+        else:  # all frames ran (steps_per_action >= 1, so frame is the last index)
+            if self._manual_frames:
+                self._update_mode()  # the observation tells whether the next action counts
+        self._manual_frame_count += self._step_manual_frames
+        return frame + 1
+
+    def _agent_progress(self, s_start: float, frames: int) -> float:
+        """m gained along the path in the step's frames the agent drove (the metrics'
+        wrapped-difference formula); exactly 0 when the human drove them all."""
+        length = self.track.length
+        half = 0.5 * length
+        gained, s_before = 0.0, s_start
+        for s, manual in zip(self._s_buffer[:frames].tolist(), self._manual_buffer[:frames],
+                             strict=True):
+            if not manual:
+                gained += (s - s_before + half) % length - half
+            s_before = s
+        return gained
 
     def _update_mode(self) -> None:
         """dbw_enabled for the frame about to run; (re)start the driver on a take-over."""
@@ -688,6 +940,9 @@ class TrackLoopEnv(gym.Env):
         st = self.state
         info: dict[str, Any] = self.metrics.step_info()
         line = self._next_line
+        front_line, front_distance = self.metrics.next_stop_line
+        if front_line < 0:
+            front_distance = self.track.length  # like stop_line_distance without lines
         success = self.metrics.driving.laps_completed >= self._laps
         info.update({
             "x": st.x,
@@ -700,8 +955,11 @@ class TrackLoopEnv(gym.Env):
             "brake_torque": st.brake_torque,
             "steering_wheel_angle": st.steering_wheel_angle,
             "dbw_enabled": self.dbw_enabled,
+            "manual_frames": self._step_manual_frames,
             "next_stop_line": line,
             "stop_line_distance": self._line_distance,
+            "next_stop_line_front": front_line,
+            "stop_line_distance_front": front_distance,
             "light_state_ahead": int(self.lights.states[line]) if line >= 0 else UNKNOWN,
             "new_incidents": [incident.kind for incident in incidents],
             "is_success": success,

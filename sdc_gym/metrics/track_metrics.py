@@ -25,7 +25,15 @@ Crossing
     The front bumper crosses a stop line at the first physics step at which its unwrapped
     arc length is strictly beyond the line's. Each pass over a line counts once: the
     pointer to the next line only moves forward, so the small backward motion of ``s``
-    that steering can cause never counts a line twice.
+    that steering can cause never counts a line twice. Lines at the same ``s`` are
+    separate lines: a pass counts each of them (in the same step).
+Next line
+    At :meth:`TrackMetrics.reset` the next line is the first one at least
+    ``front_offset_m`` ahead of the reference point, i.e. not yet under the car (a line
+    between the rear axle and the front bumper counts as passed);
+    :attr:`TrackMetrics.next_stop_line` reports it with its distance from the front
+    bumper. The env starts the car where no line lies under it, so the observation (the
+    next line ahead of the rear axle) and the metrics agree at every reset.
 Red-light violation
     A crossing at a step when that line's light (light ``i`` belongs to stop line ``i``)
     is RED; a ``"red_light"`` incident with the line's index as its value. Crossing on
@@ -126,11 +134,12 @@ class TrackMetrics:
         self._line_order = [int(i) for i in order]
         sorted_s = [float(track.stop_line_s[i]) for i in order]
         count = len(sorted_s)
-        # Gap from each line (in sorted order) to the next one, wrapping the loop.
-        self._gap_to_next = [
-            (sorted_s[(k + 1) % count] - sorted_s[k]) % self._length or self._length
-            for k in range(count)
-        ] if count > 1 else [self._length] * count
+        # Gap from each line (in sorted order) to the next one; the last wraps the loop end.
+        # Lines at the same s have a gap of 0 (each is crossed, in the same step); the gaps
+        # always add up to one loop.
+        self._gap_to_next = [sorted_s[k + 1] - sorted_s[k] for k in range(count - 1)]
+        if count:
+            self._gap_to_next.append(sorted_s[0] + self._length - sorted_s[-1])
         self._sorted_position = {line: k for k, line in enumerate(self._line_order)}
         self._ready = False
 
@@ -143,10 +152,17 @@ class TrackMetrics:
         self._steps = 0
         offset = self.front_offset_m
         if self._line_order:
-            line, ahead = self.track.next_stop_line(s + offset)
+            # The line ahead of the reference point, skipping any under the car (the same
+            # query as the env's observation, so both name the same line).
+            line, ahead = self.track.next_stop_line(s)
             position = self._sorted_position[line]
+            for _ in range(len(self._line_order)):
+                if ahead >= offset:
+                    break
+                ahead += self._gap_to_next[position]
+                position = (position + 1) % len(self._line_order)
             self._next_position = position
-            self._next_cross = offset + ahead
+            self._next_cross = ahead
             previous = (position - 1) % len(self._line_order)
             self._last_line = self._line_order[previous]
             self._last_cross = self._next_cross - self._gap_to_next[previous]
@@ -266,6 +282,15 @@ class TrackMetrics:
     def incident_counts(self) -> dict[str, int]:
         """Incidents by kind, every kind of :data:`TRACK_INCIDENT_KINDS` present."""
         return self.driving.incident_counts
+
+    @property
+    def next_stop_line(self) -> tuple[int, float]:
+        """(index, m from the front bumper along the path) of the next stop line the front
+        bumper will cross; ``(-1, inf)`` on a track without lines."""
+        if not self._line_order:
+            return -1, math.inf
+        return (self._line_order[self._next_position],
+                self._next_cross - self._progress - self.front_offset_m)
 
     @property
     def red_light_violations(self) -> int:

@@ -54,6 +54,19 @@ starting at an offset drawn from the caller's rng. Frames are therefore reproduc
 the rng, and different rng states give differently placed noise, without drawing
 H x W x 3 normals per frame. Gain and noise are one fixed-point int16 pass.
 
+Distance varies by itself: every frame sees the lights from where the car is, so a drive
+(or a data set of sampled poses) shows each light from ``max_range_m`` down to its stop
+line: its housing is about 10 px tall at 150 m and 50 px at the stop line (26.5 m) at the
+training size. On top of that, ``distance_jitter`` (opt-in, default 0) draws one factor
+``g`` per frame, uniform in ``[1 - j, 1 + j]``, and draws every housing and lamp ``g``
+times its size about its centre: the light looks as if it were at ``1 / g`` of its
+distance (the pinhole image of an object scaled by ``g`` about its centre is that of the
+object moved along the view ray to ``1 / g`` of its depth, up to the perspective of the
+0.5 m housing depth). The labels of :meth:`TrackCamera.render_with_labels` give the drawn
+boxes; :func:`light_bounding_box` (no rng) gives the un-jittered one, so a crop-based
+classifier sees at most ``j / 2`` of the box size of misalignment per side. It is off by
+default so that such crops match exactly and default images stay as they were.
+
 Labels: :meth:`TrackCamera.render_with_labels` also returns, per drawn light, its index,
 its pixel bounding box (half-open integer bounds ``(u_min, v_min, u_max, v_max)``: crop
 with ``image[v_min:v_max, u_min:u_max]``; it covers every pixel the housing touches), its
@@ -90,6 +103,8 @@ DEFAULT_PITCH_RAD = 0.10  # up, keeps a 5.5 m high light in view from its stop l
 DEFAULT_MAX_RANGE_M = 150.0
 DEFAULT_BRIGHTNESS_JITTER = 0.2  # gain in [0.8, 1.2]
 DEFAULT_NOISE_SIGMA = 4.0  # 0-255 levels
+DEFAULT_DISTANCE_JITTER = 0.0  # opt-in apparent-distance factor spread (see module doc)
+MAX_DISTANCE_JITTER = 0.2
 
 # --- the traffic light housing ---------------------------------------------------------------
 LIGHT_HOUSING_WIDTH_M = 1.0
@@ -137,6 +152,8 @@ _NUMBER_CHECKS: dict[str, tuple[Callable[[float], bool], str]] = {
     "brightness_jitter": (lambda value: 0 <= value <= MAX_BRIGHTNESS_JITTER,
                           f" in [0, {MAX_BRIGHTNESS_JITTER}]"),
     "noise_sigma": (lambda value: value >= 0, " >= 0"),
+    "distance_jitter": (lambda value: 0 <= value <= MAX_DISTANCE_JITTER,
+                        f" in [0, {MAX_DISTANCE_JITTER}]"),
 }
 
 
@@ -155,6 +172,8 @@ class CameraConfig:
         variation: apply brightness jitter and noise (needs an rng per frame).
         brightness_jitter: gain drawn uniformly in [1 - j, 1 + j], 0 <= j <= 0.5.
         noise_sigma: standard deviation of additive pixel noise, 0-255 levels.
+        distance_jitter: lights are drawn at ``g`` times their size, ``g`` uniform in
+            [1 - j, 1 + j] per frame (as if at ``1 / g`` of their distance); 0 <= j <= 0.2.
     """
 
     width: int = ORIGINAL_WIDTH_PX
@@ -170,6 +189,7 @@ class CameraConfig:
     variation: bool = True
     brightness_jitter: float = DEFAULT_BRIGHTNESS_JITTER
     noise_sigma: float = DEFAULT_NOISE_SIGMA
+    distance_jitter: float = DEFAULT_DISTANCE_JITTER
 
     def __post_init__(self) -> None:
         for name in ("width", "height"):
@@ -319,6 +339,7 @@ class _LightView(NamedTuple):
     lamp_u: NDArray[np.float64]  # (k, 3) red, yellow, green lamp centres
     lamp_v: NDArray[np.float64]  # (k, 3)
     lamp_depth: NDArray[np.float64]  # (k, 3)
+    scale: float  # the housing and lamps are drawn this many times their size
 
 
 # Lamp centres on the front face in the light's own frame (along facing, left, up), m.
@@ -331,9 +352,12 @@ _CENTRE = 11
 
 
 def _view_lights(centers: NDArray[np.float64], yaws: NDArray[np.float64], car_x: float,
-                 car_y: float, car_yaw: float, config: CameraConfig) -> _LightView:
-    """Project every light's corners, lamps and centre in one pass (the per-frame hot spot)."""
-    camera = world_to_camera(_light_points(centers, yaws, _LIGHT_POINTS_LOCAL),
+                 car_y: float, car_yaw: float, config: CameraConfig,
+                 scale: float = 1.0) -> _LightView:
+    """Project every light's corners, lamps and centre in one pass (the per-frame hot spot);
+    ``scale`` sizes the lights about their centres (the distance jitter)."""
+    local = _LIGHT_POINTS_LOCAL if scale == 1.0 else _LIGHT_POINTS_LOCAL * scale
+    camera = world_to_camera(_light_points(centers, yaws, local),
                              car_x, car_y, car_yaw, config)
     depth = camera[..., 2]
     safe = np.maximum(depth, NEAR_CLIP_M)  # only lights with every corner this far are drawn
@@ -353,7 +377,7 @@ def _view_lights(centers: NDArray[np.float64], yaws: NDArray[np.float64], car_x:
     visible = (depth[:, _CORNERS].min(-1) >= NEAR_CLIP_M) & overlaps & (
         ground_distance <= config.max_range_m)
     return _LightView(visible, box, depth[:, _CENTRE], cos_view > 0, np.abs(cos_view),
-                      u[:, _LAMPS], v[:, _LAMPS], depth[:, _LAMPS])
+                      u[:, _LAMPS], v[:, _LAMPS], depth[:, _LAMPS], scale)
 
 
 def _pixel_bbox(box: NDArray[np.float64], config: CameraConfig) -> tuple[int, int, int, int]:
@@ -462,8 +486,13 @@ class TrackCamera:
                              f"{np.asarray(light_states).shape}")
         image = self.background.copy()
         labels: list[LightLabel] = []
+        scale = 1.0
+        if config.variation and config.distance_jitter > 0:
+            assert rng is not None
+            jitter = config.distance_jitter
+            scale = float(rng.uniform(1.0 - jitter, 1.0 + jitter))
         if len(centers):
-            view = _view_lights(centers, yaws, car_x, car_y, car_yaw, config)
+            view = _view_lights(centers, yaws, car_x, car_y, car_yaw, config, scale)
             drawn = np.flatnonzero(view.visible)
             for light in drawn[np.argsort(-view.depth[drawn], kind="stable")]:
                 state = int(states[light])
@@ -490,11 +519,12 @@ class TrackCamera:
         if not view.facing[light]:
             return
         squeeze = view.foreshortening[light]
+        lamp_radius = LAMP_RADIUS_M * view.scale
         for lamp, lamp_state in enumerate(LAMP_STATES):
             colour = LAMP_ON_RGB[lamp_state] if lamp_state == state else LAMP_OFF_RGB[lamp_state]
             depth = view.lamp_depth[light, lamp]
-            radius_u = max(config.fx * LAMP_RADIUS_M * squeeze / depth, MIN_LAMP_RADIUS_PX)
-            radius_v = max(config.fy * LAMP_RADIUS_M / depth, MIN_LAMP_RADIUS_PX)
+            radius_u = max(config.fx * lamp_radius * squeeze / depth, MIN_LAMP_RADIUS_PX)
+            radius_v = max(config.fy * lamp_radius / depth, MIN_LAMP_RADIUS_PX)
             self._fill_ellipse(image, view.lamp_u[light, lamp], view.lamp_v[light, lamp],
                                radius_u, radius_v, colour)
 

@@ -27,11 +27,22 @@ Speed
     m/s^3 (no jerky feet).
 Stop lines
     Given the distance to the next stop line whose light is red or yellow, the driver
-    decides once, when the line first appears, whether it can stop before it without
+    decides once, when the line first appears, whether it can come to rest at its rest
+    point (the front bumper ``stop_gap`` metres, drawn per reset, before the line) without
     braking harder than ``dilemma_decel`` (a human at a yellow light); if not, it drives
-    on and ignores that line. Otherwise it follows the braking curve
-    ``v = sqrt(2 * comfort_decel * gap)`` down to a rest point with the front bumper
-    ``stop_gap`` metres (drawn per reset) before the line, and holds the brake there.
+    on and ignores that line. Otherwise it follows a braking curve down to the rest point
+    and holds the brake there. Both the decision and the curve use the
+    **jerk-limited braking distance** (:func:`braking_distance`): the pedal cannot jump
+    from the current acceleration ``a0`` to ``-D`` but ramps at ``pedal_jerk``, taking
+    ``T = (a0 + D) / pedal_jerk`` s, and the brakes answer after the car's brake lag
+    ``brake_time_constant``. At 11 m/s from cruising (``a0 = 0``) the ramp to 3.5 m/s^2
+    adds about ``v T / 2`` = 6 m to ``v^2 / 2D`` = 17 m; ignoring it left the car 2.3 m past
+    a line it had decided to stop for. The curve is the speed ``v`` from which braking at
+    ``comfort_decel`` (ramp included) ends exactly at the rest point; above it the driver
+    brakes harder, up to ``max_decel``, which is more than ``dilemma_decel``. Measured over
+    1,688 decided stops (sim and site cars, 3 to 13 m/s, lines appearing 3 to 60 m ahead,
+    4 seeds) the front bumper came to rest within 0.5 m of its rest point, never past the
+    line (at least 0.47 m before it).
 Pedals
     The wanted acceleration becomes throttle or brake torque through the car's own force
     balance (the driver "knows the feel" of the car): ``F = m a + drag + rolling - creep``;
@@ -67,6 +78,39 @@ _NEW_LINE_JUMP_M = 5.0
 # Guards against dividing by zero distances (m) and curvatures (1/m).
 _MIN_DISTANCE_M = 0.1
 _MIN_CURVATURE = 1e-6
+
+
+def braking_distance(speed: float, accel: float, decel: float, jerk: float,
+                     dead_time: float = 0.0) -> float:
+    """m travelled to rest when braking at ``decel`` with a jerk-limited pedal.
+
+    The car moves at ``speed`` m/s with acceleration ``accel`` m/s^2 (the pedal now). It
+    keeps that acceleration for ``dead_time`` s (actuator lag), then the acceleration
+    ramps linearly at ``jerk`` m/s^3 to ``-decel`` (``decel > 0``) and stays there until
+    the car is at rest; the car may also come to rest during the ramp. ``jerk = 0`` means
+    no ramp (an instant pedal). An ``accel`` already below ``-decel`` is taken as
+    ``-decel`` (an overestimate). Closed form: piecewise constant jerk.
+    """
+    if speed <= 0.0:
+        return 0.0
+    if decel <= 0.0:
+        return math.inf
+    accel = max(accel, -decel)
+    travelled = 0.0
+    if dead_time > 0.0:
+        after = speed + accel * dead_time
+        if after <= 0.0:  # at rest before the brakes answer (accel < 0 here)
+            return speed * speed / (-2.0 * accel)
+        travelled = speed * dead_time + 0.5 * accel * dead_time * dead_time
+        speed = after
+    ramp = (accel + decel) / jerk if jerk > 0.0 else 0.0
+    at_ramp_end = speed + accel * ramp - 0.5 * jerk * ramp * ramp
+    if at_ramp_end > 0.0:
+        return (travelled + speed * ramp + 0.5 * accel * ramp * ramp - jerk * ramp**3 / 6.0
+                + at_ramp_end * at_ramp_end / (2.0 * decel))
+    # At rest during the ramp (jerk > 0 here): speed + accel t - jerk t^2 / 2 = 0.
+    t = (accel + math.sqrt(accel * accel + 2.0 * jerk * speed)) / jerk
+    return travelled + speed * t + 0.5 * accel * t * t - jerk * t**3 / 6.0
 
 
 @dataclass(frozen=True)
@@ -260,8 +304,13 @@ class ManualDriver:
             if gap < style.hold_gap and speed < style.standstill_speed:
                 self._accel = 0.0
                 return 0.0, True
-            on_curve = math.sqrt(2.0 * style.comfort_decel * max(gap, 0.0))
-            wanted = min(wanted, -style.comfort_decel + style.stop_gain * (on_curve - speed))
+            # The braking curve: the speed whose comfortable stop, pedal ramp and brake lag
+            # included, ends at the rest point. v^2 / 2D plus the ramp's extra distance
+            # equals the gap exactly when the speed is on the curve.
+            decel = style.comfort_decel
+            ramp_extra = self._braking_distance(speed, decel) - speed * speed / (2.0 * decel)
+            on_curve = math.sqrt(2.0 * decel * max(gap - ramp_extra, 0.0))
+            wanted = min(wanted, -decel + style.stop_gain * (on_curve - speed))
         wanted = max(wanted, -style.max_decel)
 
         step = style.pedal_jerk * dt
@@ -276,16 +325,23 @@ class ManualDriver:
         if stop_distance is None or stop_distance < 0.0:
             self._last_stop_distance = None
             return None
-        to_bumper_line = stop_distance - self.params.wheel_base - self.style.front_overhang
+        to_rest_point = (stop_distance - self.params.wheel_base - self.style.front_overhang
+                         - self.stop_gap)
         last = self._last_stop_distance
         if last is None or stop_distance > last + _NEW_LINE_JUMP_M:
-            # A new red/yellow line: can I stop before it without braking too hard?
-            needed = speed * speed / (2.0 * max(to_bumper_line, _MIN_DISTANCE_M))
-            self._stopping = to_bumper_line > 0.0 and needed <= self.style.dilemma_decel
+            # A new red/yellow line: can I stop at my rest point without braking harder
+            # than dilemma_decel, given how fast my foot and the brakes can move?
+            needed = self._braking_distance(speed, self.style.dilemma_decel)
+            self._stopping = to_rest_point > 0.0 and needed <= to_rest_point
         self._last_stop_distance = stop_distance
         if not self._stopping:
             return None
-        return to_bumper_line - self.stop_gap
+        return to_rest_point
+
+    def _braking_distance(self, speed: float, decel: float) -> float:
+        """m to rest braking at ``decel`` from now: pedal ramp and brake lag included."""
+        return braking_distance(speed, self._accel, decel, self.style.pedal_jerk,
+                                self.params.brake_time_constant)
 
     def _pedals(self, speed: float, accel: float) -> tuple[float, float]:
         """Throttle and brake torque giving ``accel`` m/s^2, from the car's force balance."""
