@@ -22,8 +22,10 @@ Light state sources (the :class:`LightStateSource` protocol)
     of the next stop line, its distance m], optional ``light_states``, optional
     ``camera`` (H, W, 3) uint8). The light of interest is the one of the next stop line
     (light ``i`` belongs to stop line ``i``); the method returns its state as an ``int``
-    code, UNKNOWN when no light is recognised. A binary red / not-red classifier returns
-    RED or UNKNOWN (the behavior layer then cannot stop early for yellow lights).
+    code, UNKNOWN when no light is recognised. The committed classifiers
+    (:mod:`agents.track.light_classifier`) return RED, YELLOW or UNKNOWN: a red / not-red
+    classifier alone would leave the behavior layer unable to stop early for a yellow
+    light, and it runs reds that turn red inside its braking distance.
 
     * :class:`GroundTruthLightSource` (here): the env's ``light_states`` observation
       (``observe_light_states: True`` in the env config).
