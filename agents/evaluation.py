@@ -169,9 +169,17 @@ def _laps_done(info: dict[str, Any], loop_length: float) -> float:
 _WORKER_QUEUE: Any = None  # a worker process's progress queue, set by _init_worker
 
 
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+"""Thread counts pinned to 1 in worker processes (unless set): the workers already fill the
+cores, and a torch model (the light classifiers) using every core in every worker ran
+~10 x slower than single-threaded."""
+
+
 def _init_worker(queue: Any) -> None:
     global _WORKER_QUEUE  # per-process state of the pool's workers
     _WORKER_QUEUE = queue
+    for variable in WORKER_THREAD_VARIABLES:  # read by torch when a worker imports it
+        os.environ.setdefault(variable, "1")
 
 
 def _run_in_worker(index: int, spec: EpisodeSpec) -> dict[str, Any]:
