@@ -564,6 +564,14 @@ class FSMBehavior:
             return False  # beside us: the traffic's own +-20 m clearance rule lets it merge
         return not p.check_far_lane_behind or self._safe_behind(far, v, p.safety_gap_min_m)
 
+    @staticmethod
+    def _most_room_first(lanes: tuple[LaneView, ...], n: int, a: int, b: int) -> tuple[int, ...]:
+        """The lanes among ``a`` and ``b`` that exist, the one with more room ahead first
+        (``a`` on a tie)."""
+        if b < n and (a < 0 or lanes[b].ahead_gap > lanes[a].ahead_gap):
+            a, b = b, a
+        return tuple(t for t in (a, b) if 0 <= t < n)
+
     def _tactical(
         self,
         lanes: tuple[LaneView, ...],
@@ -579,12 +587,7 @@ class FSMBehavior:
         centre = (n - 1) * 0.5
         off = abs(cur - centre)
         least = p.safety_gap_min_m
-        a, b = cur - 1, cur + 1  # most room ahead first
-        if b < n and (a < 0 or lanes[b].ahead_gap > lanes[a].ahead_gap):
-            a, b = b, a
-        for t in (a, b):
-            if t < 0 or t >= n:
-                continue
+        for t in self._most_room_first(lanes, n, cur - 1, cur + 1):
             lane = lanes[t]
             room = lane.ahead_gap
             if room <= ahead or not self._safe_behind(lane, v, least):
@@ -595,13 +598,8 @@ class FSMBehavior:
             elif room > prof.outward_ahead_m:
                 return t
         if radius > p.double_change_radius_m:
-            a, b = cur - 2, cur + 2
-            if b < n and (a < 0 or lanes[b].ahead_gap > lanes[a].ahead_gap):
-                a, b = b, a
             clear = p.double_target_clear_m
-            for t in (a, b):
-                if t < 0 or t >= n:
-                    continue
+            for t in self._most_room_first(lanes, n, cur - 2, cur + 2):
                 lane = lanes[t]
                 mid = lanes[(cur + t) // 2]
                 if (
@@ -644,14 +642,10 @@ class FSMBehavior:
                 return inward
         if prof.mid_range_m <= ahead < prof.early_change_max_gap_m:  # early change
             if off > 0.5:  # the middle lane first
-                first, second = inward, 2 * cur - inward
+                candidates = tuple(t for t in (inward, 2 * cur - inward) if 0 <= t < n)
             else:  # from the middle: the lane with the most room first
-                first, second = cur - 1, cur + 1
-                if second < n and (first < 0 or lanes[second].ahead_gap > lanes[first].ahead_gap):
-                    first, second = second, first
-            for t in (first, second):
-                if t < 0 or t >= n:
-                    continue
+                candidates = self._most_room_first(lanes, n, cur - 1, cur + 1)
+            for t in candidates:
                 lane = lanes[t]
                 if lane.ahead_gap < p.open_lane_m or not self._safe_behind(
                     lane, v, p.return_behind_m
