@@ -26,6 +26,7 @@ next to the seed planner's record of 276.53 miles.
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -106,7 +107,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     # A str, not a Path: Path("") is "." and would silently write into the working folder.
     parser.add_argument("--output", default="results/latest",
                         help="folder for the result files and plots")
-    parser.add_argument("--workers", type=int, default=1, help="parallel worker processes")
+    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                        help="parallel worker processes (default: one per CPU core, "
+                             f"{os.cpu_count() or 1} here)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
