@@ -5,14 +5,14 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections import deque
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS, TopDownRenderEnv
 from sdc_gym.geometry.collision import first_contact
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
@@ -20,6 +20,9 @@ from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, TelemetryMessage
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
 from sdc_gym.units import MPS_TO_MPH
+
+if TYPE_CHECKING:
+    from sdc_gym.render.highway_renderer import HighwayRenderer, HighwayScene
 
 PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
 ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
@@ -50,7 +53,7 @@ def _to_tuple(value: Any) -> Any:
     return tuple(value) if isinstance(value, list) else value
 
 
-class HighwayLoopEnv(gym.Env):
+class HighwayLoopEnv(TopDownRenderEnv):
     """
     ## Description
 
@@ -145,9 +148,6 @@ class HighwayLoopEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"],
-                                          "render_fps": 50}
-
     DEFAULT_CONFIG: ClassVar[dict[str, Any]] = {
         "map": "default",            # built-in name ("default", "oval") or path to x y s dx dy
         "path_points": 50,           # capacity of the action path (points)
@@ -167,9 +167,7 @@ class HighwayLoopEnv(gym.Env):
         "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                             "speed": -1.0, "lane": -1.0, "off_road": -1.0},
         "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
-        "render_width": 600,         # px
-        "render_height": 600,        # px
-        "render_pixels_per_meter": 5.0,
+        **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
     }
 
     def __init__(self, config: dict[str, Any] | None = None,
@@ -177,10 +175,7 @@ class HighwayLoopEnv(gym.Env):
         owner = "HighwayLoop-v0"
         self.config = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
         cfg = self.config
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
-                             f"or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self._init_render_mode(render_mode)
         require(cfg["path_points"] >= 2, owner, "path_points", "an int >= 2", cfg["path_points"])
         require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
                 cfg["steps_per_action"])
@@ -216,8 +211,7 @@ class HighwayLoopEnv(gym.Env):
         self.car_count = self.traffic_config.car_count
         self.sensors = HighwaySensors(self.sensor_config, self.car_count, self.road.length)
         self.metrics = DrivingMetrics(self.rules, self.road.length)
-        self.metadata = {**self.metadata,
-                         "render_fps": round(1.0 / (PHYSICS_DT * self.steps_per_action))}
+        self._set_render_fps(PHYSICS_DT * self.steps_per_action)
 
         low_xy = self.road.waypoints[:, :2].min(axis=0) - ACTION_MARGIN_M
         high_xy = self.road.waypoints[:, :2].max(axis=0) + ACTION_MARGIN_M
@@ -241,7 +235,6 @@ class HighwayLoopEnv(gym.Env):
                                   for kind, value in cfg["reward_incident"].items()}
         self._progress_scale = cfg["reward_progress"] / (
             self.rules.speed_limit * PHYSICS_DT * self.steps_per_action)
-        self._renderer: Any = None
         self._empty_path = np.zeros((0, 2))
         self._state_ready = False
 
@@ -471,25 +464,21 @@ class HighwayLoopEnv(gym.Env):
         return summary
 
     # ------------------------------------------------------------------ rendering
-    def render(self) -> NDArray[np.uint8] | None:
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode= "
-                            "'rgb_array' or 'human' to gym.make")
-            return None
+    def _make_renderer(self) -> HighwayRenderer:
+        from sdc_gym.render import HighwayRenderer
+
+        return HighwayRenderer(
+            self.road, **self._renderer_options())
+
+    def _render_scene(self) -> HighwayScene:
         if not self._state_ready:
             raise RuntimeError("call reset() before render()")
-        from sdc_gym.render import HighwayRenderer, HighwayScene
+        from sdc_gym.render import HighwayScene
 
-        if self._renderer is None:
-            self._renderer = HighwayRenderer(
-                self.road, width=self.config["render_width"],
-                height=self.config["render_height"],
-                pixels_per_meter=self.config["render_pixels_per_meter"],
-                render_fps=self.metadata["render_fps"])
         traffic = self.traffic
         colors = np.array([vehicle.color for vehicle in VEHICLE_TYPES], dtype=np.uint8)
         counts = self.metrics.incident_counts
-        scene = HighwayScene(
+        return HighwayScene(
             ego_xy=(float(self._xy[0]), float(self._xy[1])), ego_heading=self._yaw,
             ego_length=self.ego_length, ego_width=self.ego_width,
             cars_xy=np.stack([traffic.x, traffic.y], axis=-1), cars_heading=traffic.heading,
@@ -498,12 +487,3 @@ class HighwayLoopEnv(gym.Env):
             speed_mph=self._speed * MPS_TO_MPH, time_s=self.metrics.time,
             laps=self.metrics.laps_completed, distance_m=self.metrics.distance,
             incidents=dict(counts), status=self._done_reason)
-        if self.render_mode == "rgb_array":
-            return self._renderer.render_rgb(scene)
-        self._renderer.render_human(scene)
-        return None
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None

@@ -6,14 +6,14 @@ import itertools
 import math
 import os
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS, TopDownRenderEnv
 from sdc_gym.geometry.collision import boxes_overlap
 from sdc_gym.lights.traffic_lights import (
     LIGHTS_DEFAULTS,
@@ -43,6 +43,9 @@ from sdc_gym.vehicle.dbw_vehicle import (
     vehicle_parameters,
 )
 from sdc_gym.vehicle.manual_driver import ManualDriver
+
+if TYPE_CHECKING:
+    from sdc_gym.render.track_renderer import TrackRenderer, TrackScene
 
 # --- the car's body around its reference point (the rear axle) -----------------------------
 FRONT_OVERHANG_M = 1.0  # front axle to front bumper (the manual driver's assumption too)
@@ -118,7 +121,7 @@ def _speed_bound(params: VehicleParameters) -> float:
     return top_speed(params) + PHYSICS_DT * max(launch, 0.0)
 
 
-class TrackLoopEnv(gym.Env):
+class TrackLoopEnv(TopDownRenderEnv):
     """
     ## Description
 
@@ -307,9 +310,6 @@ class TrackLoopEnv(gym.Env):
     * v0: initial version.
     """
 
-    metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"],
-                                          "render_fps": 50}
-
     DEFAULT_CONFIG: ClassVar[dict[str, Any]] = {
         "track": "default",           # built-in name ("default", "site") or waypoint CSV path
         "light_config": None,         # traffic-light YAML path (with a CSV track only)
@@ -350,9 +350,7 @@ class TrackLoopEnv(gym.Env):
         "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                             "speed": -1.0, "lane": -1.0, "off_road": -10.0,
                             "red_light": -5.0},
-        "render_width": 600,           # px
-        "render_height": 600,          # px
-        "render_pixels_per_meter": 5.0,
+        **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
     }
 
     def __init__(self, config: dict[str, Any] | None = None,
@@ -360,10 +358,7 @@ class TrackLoopEnv(gym.Env):
         owner = "TrackLoop-v0"
         self.config = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
         cfg = self.config
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} "
-                             f"or None, got {render_mode!r}")
-        self.render_mode = render_mode
+        self._init_render_mode(render_mode)
         self._given = dict(config or {})  # the user's own keys, to catch ignored ones
         require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
                 cfg["steps_per_action"])
@@ -417,8 +412,7 @@ class TrackLoopEnv(gym.Env):
         self.vehicle = DBWVehicle(self.params)
         self.metrics = TrackMetrics(track, self.rules, self.front_offset)
         self.start_s = self._start_s(owner)
-        self.metadata = {**self.metadata,
-                         "render_fps": round(1.0 / (PHYSICS_DT * self.steps_per_action))}
+        self._set_render_fps(PHYSICS_DT * self.steps_per_action)
 
         # The camera block is validated even when the camera is off (no silent typos).
         camera_config = self._camera_config(config, owner)
@@ -486,7 +480,6 @@ class TrackLoopEnv(gym.Env):
         self._laps = int(cfg["laps"])
         # Truncation at the first whole frame at or after max_duration.
         self._max_frames = math.ceil(cfg["max_duration"] / PHYSICS_DT - 1e-6)
-        self._renderer: Any = None
         self._debug_path: NDArray[np.float64] = np.zeros((0, 2))
         self._state_ready = False
 
@@ -995,24 +988,22 @@ class TrackLoopEnv(gym.Env):
                              f"{path.shape}")
         self._debug_path = path.copy()
 
-    def render(self) -> NDArray[np.uint8] | None:
-        if self.render_mode is None:
-            gym.logger.warn("render() called without a render_mode; pass render_mode= "
-                            "'rgb_array' or 'human' to gym.make")
-            return None
+    # ------------------------------------------------------------------ rendering
+    def _make_renderer(self) -> TrackRenderer:
+        from sdc_gym.render.track_renderer import TrackRenderer
+
+        return TrackRenderer(
+            self.track, road_half_width=self.road_half_width,
+            **self._renderer_options())
+
+    def _render_scene(self) -> TrackScene:
         if not hasattr(self, "state"):
             raise RuntimeError("call reset() before render()")
-        from sdc_gym.render.track_renderer import TrackRenderer, TrackScene
+        from sdc_gym.render.track_renderer import TrackScene
 
-        if self._renderer is None:
-            self._renderer = TrackRenderer(
-                self.track, road_half_width=self.road_half_width,
-                width=self.config["render_width"], height=self.config["render_height"],
-                pixels_per_meter=self.config["render_pixels_per_meter"],
-                render_fps=self.metadata["render_fps"])
         st = self.state
         obstacles = self.config["obstacles"]
-        scene = TrackScene(
+        return TrackScene(
             car_xy=(st.x + self._centre_offset * math.cos(st.yaw),
                     st.y + self._centre_offset * math.sin(st.yaw)),
             car_heading=st.yaw, car_length=self.car_length, car_width=self.car_width,
@@ -1027,12 +1018,3 @@ class TrackLoopEnv(gym.Env):
             incidents={kind: count for kind, count in self.metrics.incident_counts.items()
                        if count},
             status=self._done_reason)
-        if self.render_mode == "rgb_array":
-            return self._renderer.render_rgb(scene)
-        self._renderer.render_human(scene)
-        return None
-
-    def close(self) -> None:
-        if self._renderer is not None:
-            self._renderer.close()
-            self._renderer = None

@@ -21,29 +21,26 @@ mini-map background). A frame selects the visible samples by their distance to t
 (vectorized), transforms only those, and draws.
 
 pygame is imported lazily by the constructor, so importing this module (and the env) does
-not import pygame. ``rgb_array`` rendering draws onto a plain ``pygame.Surface`` and only
-initialises ``pygame.font``: it never starts the video subsystem, so it works with no
-display and without ``SDL_VIDEODRIVER``. ``human`` rendering opens a window on the first
-:meth:`HighwayRenderer.render_human` call.
+not import pygame. The view, pygame, the ``human`` window, the text panel and the mini-map's
+fit come from the shared base :class:`~sdc_gym.render.top_down.TopDownRenderer`:
+``rgb_array`` rendering never starts the video subsystem (no display needed), ``human``
+rendering opens a window on the first :meth:`HighwayRenderer.render_human` call.
 """
 
 from __future__ import annotations
 
 import math
-import os
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.render.drawing import box_corners, circular_runs
+from sdc_gym.render.top_down import Color, TopDownRenderer
 from sdc_gym.units import METERS_PER_MILE
 
 if TYPE_CHECKING:
     from sdc_gym.road.highway_map import HighwayMap
-
-Color = tuple[int, int, int]
 
 # Colours (RGB). Traffic colours come from the env; keep them distinct from these.
 GRASS_COLOR: Color = (46, 82, 46)
@@ -54,18 +51,17 @@ WHITE_LINE_COLOR: Color = (235, 235, 235)
 MARKER_COLOR: Color = (250, 250, 250)
 EGO_COLOR: Color = (230, 40, 40)
 PATH_COLOR: Color = (0, 255, 0)
-OUTLINE_COLOR: Color = (15, 15, 15)
-GLASS_COLOR: Color = (45, 60, 85)
-TEXT_COLOR: Color = (245, 245, 245)
-STATUS_COLOR: Color = (255, 210, 60)
-MINIMAP_ROAD_COLOR: Color = (150, 150, 150)
 
 MARKER_SPACING_M = 100.0
 DASH_LENGTH_M = 3.0  # US lane dashes: 10 ft paint, 30 ft gap
 DASH_PERIOD_M = 12.0
 SHOULDER_M = 1.0
 SAMPLE_STEP_M = 2.0
-_TEXT_CACHE_SIZE = 256
+LINE_WIDTH_M = 0.3  # lane lines
+PATH_DOT_M = 0.3  # radius of the path dots (at least 2 px)
+MARKER_REACH_M = 20.0  # markers this far beyond the view radius are drawn (label width)
+MINIMAP_CAR_PX = 2  # radius of a traffic car's dot on the mini-map
+MINIMAP_START_PX = 3  # radius of the start/finish dot on the mini-map
 
 
 @dataclass(eq=False)
@@ -100,7 +96,7 @@ class HighwayScene:
     status: str = ""
 
 
-class HighwayRenderer:
+class HighwayRenderer(TopDownRenderer):
     """Draws :class:`HighwayScene` frames of one :class:`HighwayMap`; see the module doc.
 
     Args:
@@ -119,44 +115,15 @@ class HighwayRenderer:
         pixels_per_meter: float = 5.0,
         render_fps: int = 50,
     ) -> None:
-        if width <= 0 or height <= 0:
-            raise ValueError(f"frame size must be positive, got {width} x {height}")
-        if pixels_per_meter <= 0:
-            raise ValueError(f"pixels_per_meter must be positive, got {pixels_per_meter}")
-        os.environ.setdefault("PYGAME_HIDE_SUPPORT_PROMPT", "1")
-        import pygame
-
-        self._pg: Any = pygame
-        pygame.font.init()
+        super().__init__(width=width, height=height, pixels_per_meter=pixels_per_meter,
+                         render_fps=render_fps, caption="sdc-gym highway")
         self.road = road
-        self.width = int(width)
-        self.height = int(height)
-        self.ppm = float(pixels_per_meter)
-        self.render_fps = int(render_fps)
-        self.ego_screen_xy: tuple[float, float] = (0.5 * self.width, 0.65 * self.height)
-        # Half-diagonal of the view seen from the ego, in metres: anything further is off
-        # screen. Samples up to one step (plus the shoulder) beyond it are kept.
-        cx, cy = self.ego_screen_xy
-        self.view_radius_m = math.hypot(max(cx, self.width - cx), max(cy, self.height - cy)) / (
-            self.ppm
-        )
-
-        self._surface = pygame.Surface((self.width, self.height))
-        self._window: Any = None
-        self._clock: Any = None
-        self.window_closed_by_user = False
-
-        base = max(12, round(self.height / 30))
-        self._font = pygame.font.Font(None, base + 4)
-        self._small_font = pygame.font.Font(None, base)
-        self._status_font = pygame.font.Font(None, base + 10)
-        self._text_cache: dict[tuple[int, str, Color], Any] = {}
-        self._panel_cache: dict[tuple[int, int], Any] = {}
-
-        self._line_px = max(1, round(0.3 * self.ppm))
+        self.ego_screen_xy = self.car_screen_xy  # the ego is this renderer's car
+        self._small_font = self._pg.font.Font(None, self._font_base)
+        self._line_px = max(1, round(LINE_WIDTH_M * self.ppm))
         self._precompute_road()
         self._precompute_markers()
-        self._precompute_minimap()
+        self._precompute_minimap(self._center_xy)
 
     # ------------------------------------------------------------------ static geometry
     def _precompute_road(self) -> None:
@@ -196,70 +163,14 @@ class HighwayRenderer:
         # Start/finish line across the road at s = 0.
         self._start_line = ref.to_xy(np.zeros(2), np.array([0.0, self.road.road_width]))
 
-    def _precompute_minimap(self) -> None:
-        pg = self._pg
-        size = max(60, round(0.27 * min(self.width, self.height)))
-        pad = 6
-        lo = self._center_xy.min(axis=0)
-        hi = self._center_xy.max(axis=0)
-        scale = (size - 2 * pad) / max(float(np.max(hi - lo)), 1e-6)
-        offset = pad + 0.5 * ((size - 2 * pad) - scale * (hi - lo))
-        self._mini_scale = scale
-        self._mini_lo = lo
-        self._mini_offset = offset
-        self._mini_size = size
-        self._mini_pos = (self.width - size - 8, 8)
-        surface = pg.Surface((size, size), pg.SRCALPHA)
-        surface.fill((0, 0, 0, 150))
-        loop = self._minimap_points(self._center_xy)
-        pg.draw.lines(surface, MINIMAP_ROAD_COLOR, True, loop.tolist(), 3)
+    def _decorate_minimap(self, surface: Any) -> None:
+        """The start/finish point on the mini-map."""
         start = self._minimap_points(self._center_xy[:1])[0]
-        pg.draw.circle(surface, WHITE_LINE_COLOR, start.tolist(), 3)
-        pg.draw.rect(surface, (200, 200, 200), surface.get_rect(), 1)
-        self._minimap = surface
-
-    def _minimap_points(self, xy: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Map points to mini-map pixels (north-up), relative to the mini-map corner."""
-        rel = (np.asarray(xy, dtype=np.float64) - self._mini_lo) * self._mini_scale
-        rel += self._mini_offset
-        rel[..., 1] = self._mini_size - rel[..., 1]
-        return rel
+        self._pg.draw.circle(surface, WHITE_LINE_COLOR, start.tolist(), MINIMAP_START_PX)
 
     # ------------------------------------------------------------------ per frame
-    def world_to_screen(
-        self, xy: NDArray[np.float64], ego_xy: tuple[float, float], ego_heading: float
-    ) -> NDArray[np.float64]:
-        """Map points ``(..., 2)`` to screen pixels ``(..., 2)`` of the rotated view."""
-        c, s = math.cos(ego_heading), math.sin(ego_heading)
-        p = self.ppm
-        # Columns: screen x = ppm * (rel . right), screen y = -ppm * (rel . forward).
-        matrix = np.array([[p * s, -p * c], [-p * c, -p * s]])
-        rel = np.asarray(xy, dtype=np.float64) - np.asarray(ego_xy, dtype=np.float64)
-        return rel @ matrix + np.asarray(self.ego_screen_xy)
-
-    def _text(self, font: Any, text: str, color: Color = TEXT_COLOR) -> Any:
-        key = (id(font), text, color)
-        surface = self._text_cache.get(key)
-        if surface is None:
-            if len(self._text_cache) >= _TEXT_CACHE_SIZE:
-                self._text_cache.clear()
-            surface = font.render(text, True, color)
-            self._text_cache[key] = surface
-        return surface
-
-    def _panel(self, width: int, height: int) -> Any:
-        key = (width, height)
-        panel = self._panel_cache.get(key)
-        if panel is None:
-            panel = self._pg.Surface((width, height))
-            panel.fill((0, 0, 0))
-            panel.set_alpha(150)
-            self._panel_cache[key] = panel
-        return panel
-
     def _draw(self, surface: Any, scene: HighwayScene) -> None:
-        pg = self._pg
-        draw = pg.draw
+        draw = self._pg.draw
         ego_xy = (float(scene.ego_xy[0]), float(scene.ego_xy[1]))
         heading = float(scene.ego_heading)
         ego = np.asarray(ego_xy)
@@ -267,35 +178,24 @@ class HighwayRenderer:
         surface.fill(GRASS_COLOR)
 
         # Road surface and solid lines, run by run of visible centre-line samples.
-        dist = np.hypot(*(self._center_xy - ego).T)
-        chunks = circular_runs(dist < self.view_radius_m + self._sample_margin_m)
-        chunk_pts = [to_screen(self._edges_xy[:, chunk], ego_xy, heading) for chunk in chunks]
+        chunk_pts = self._visible_chunks(self._center_xy, self._edges_xy,
+                                         self._sample_margin_m, ego_xy, heading)
         # Layer by layer (all shoulders, then all lanes, then lines): a later chunk's
         # shoulder must not cover the overlap it shares with the previous chunk's lanes.
-        for pts in chunk_pts:
-            draw.polygon(surface, SHOULDER_COLOR, np.concatenate([pts[0], pts[1][::-1]]).tolist())
-        for pts in chunk_pts:
-            draw.polygon(surface, ROAD_COLOR, np.concatenate([pts[2], pts[3][::-1]]).tolist())
-        for pts in chunk_pts:
-            draw.lines(surface, YELLOW_LINE_COLOR, False, pts[4].tolist(), self._line_px)
-            draw.lines(surface, WHITE_LINE_COLOR, False, pts[5].tolist(), self._line_px)
+        self._fill_bands(surface, chunk_pts, 0, 1, SHOULDER_COLOR)
+        self._fill_bands(surface, chunk_pts, 2, 3, ROAD_COLOR)
+        self._stroke_rows(surface, chunk_pts, [(4, YELLOW_LINE_COLOR), (5, WHITE_LINE_COLOR)])
 
         # Dashed lane separators.
-        radius = self.view_radius_m + DASH_LENGTH_M
-        if len(self._dash_start):
-            near = np.hypot(*(self._dash_start - ego).T) < radius
-            if near.any():
-                a = to_screen(self._dash_start[near], ego_xy, heading).tolist()
-                b = to_screen(self._dash_end[near], ego_xy, heading).tolist()
-                for start, end in zip(a, b, strict=True):
-                    draw.line(surface, WHITE_LINE_COLOR, start, end, self._line_px)
+        self._draw_segments(surface, self._dash_start, self._dash_end, DASH_LENGTH_M,
+                            WHITE_LINE_COLOR, self._line_px, ego_xy, heading)
 
         # Start/finish line.
         start_line = to_screen(self._start_line, ego_xy, heading)
         draw.line(surface, WHITE_LINE_COLOR, *start_line.tolist(), max(2, self._line_px * 2))
 
         # Distance markers: tick outside the right edge, label next to it (upright).
-        near = np.flatnonzero(np.hypot(*(self._marker_in - ego).T) < self.view_radius_m + 20.0)
+        near = self._near(self._marker_in, ego, MARKER_REACH_M)
         if near.size:
             tick_a = to_screen(self._marker_in[near], ego_xy, heading).tolist()
             tick_b = to_screen(self._marker_out[near], ego_xy, heading).tolist()
@@ -312,16 +212,8 @@ class HighwayRenderer:
                 surface.blit(label, label.get_rect(center=(round(lx), round(ly))))
 
         # Planner path points.
-        path = np.asarray(scene.path_xy, dtype=np.float64).reshape(-1, 2)
-        if len(path):
-            pts = to_screen(path, ego_xy, heading)
-            visible = (
-                (pts[:, 0] > -4) & (pts[:, 0] < self.width + 4)
-                & (pts[:, 1] > -4) & (pts[:, 1] < self.height + 4)
-            )
-            dot = max(2.0, 0.3 * self.ppm)
-            for point in pts[visible].tolist():
-                draw.circle(surface, PATH_COLOR, point, dot)
+        self._draw_path_dots(surface, scene.path_xy, ego_xy, heading, PATH_COLOR,
+                             max(2.0, PATH_DOT_M * self.ppm))
 
         # Traffic.
         cars = np.asarray(scene.cars_xy, dtype=np.float64).reshape(-1, 2)
@@ -332,62 +224,24 @@ class HighwayRenderer:
             visible = np.hypot(*(cars - ego).T) < self.view_radius_m + reach
             if visible.any():
                 colors = np.asarray(scene.cars_color, dtype=np.uint8).reshape(-1, 3)[visible]
-                self._draw_boxes(
-                    surface,
-                    cars[visible],
-                    np.broadcast_to(np.asarray(scene.cars_heading, dtype=np.float64),
-                                    len(cars))[visible],
-                    length[visible],
-                    width[visible],
-                    [tuple(color) for color in colors.tolist()],
-                    ego_xy,
-                    heading,
-                )
+                headings = np.broadcast_to(np.asarray(scene.cars_heading, dtype=np.float64),
+                                           len(cars))[visible]
+                self._draw_boxes(surface, cars[visible], headings, length[visible],
+                                 width[visible], [tuple(color) for color in colors.tolist()],
+                                 ego_xy, heading, glass=True)
 
         # Ego.
-        self._draw_boxes(
-            surface,
-            ego[None, :],
-            np.array([heading]),
-            np.array([float(scene.ego_length)]),
-            np.array([float(scene.ego_width)]),
-            [EGO_COLOR],
-            ego_xy,
-            heading,
-        )
+        self._draw_boxes(surface, ego[None, :], np.array([heading]),
+                         np.array([float(scene.ego_length)]),
+                         np.array([float(scene.ego_width)]), [EGO_COLOR], ego_xy, heading,
+                         glass=True)
 
         self._draw_overlay(surface, scene)
         self._draw_minimap(surface, scene, cars)
 
-    def _draw_boxes(
-        self,
-        surface: Any,
-        xy: NDArray[np.float64],
-        heading: NDArray[np.float64],
-        length: NDArray[np.float64],
-        width: NDArray[np.float64],
-        colors: list[Color],
-        ego_xy: tuple[float, float],
-        ego_heading: float,
-    ) -> None:
-        """Oriented car boxes with a dark outline and a windscreen towards the front."""
-        draw = self._pg.draw
-        half_l = 0.5 * length
-        body = box_corners(xy, heading, half_l, -half_l, 0.5 * width)
-        glass = box_corners(xy, heading, 0.25 * length, 0.08 * length, 0.38 * width)
-        body_px = self.world_to_screen(body, ego_xy, ego_heading).tolist()
-        glass_px = self.world_to_screen(glass, ego_xy, ego_heading).tolist()
-        for body_i, glass_i, color in zip(body_px, glass_px, colors, strict=True):
-            draw.polygon(surface, color, body_i)
-            draw.polygon(surface, OUTLINE_COLOR, body_i, 1)
-            draw.polygon(surface, GLASS_COLOR, glass_i)
-
     def _draw_overlay(self, surface: Any, scene: HighwayScene) -> None:
-        minutes, seconds = divmod(max(float(scene.time_s), 0.0), 60.0)
         lines = [
-            f"Speed  {scene.speed_mph:5.1f} mph",
-            f"Time   {int(minutes)}:{seconds:04.1f}",
-            f"Lap    {int(scene.laps)}",
+            *self._clock_lines(scene.speed_mph, scene.time_s, scene.laps),
             f"Dist   {scene.distance_m / METERS_PER_MILE:.2f} mi",
         ]
         if scene.incidents:
@@ -395,25 +249,8 @@ class HighwayRenderer:
             lines.extend(f"  {kind}: {int(count)}" for kind, count in scene.incidents.items())
         else:
             lines.append("Incidents  0")
-        texts = [self._text(self._font, line) for line in lines]
-        line_h = self._font.get_linesize()
-        pad = 6
-        panel_w = max(text.get_width() for text in texts) + 2 * pad
-        panel_h = line_h * len(texts) + 2 * pad
-        # Round the panel size up so a handful of cached panels serve all frames.
-        panel_w = -(-panel_w // 20) * 20
-        surface.blit(self._panel(panel_w, panel_h), (8, 8))
-        for i, text in enumerate(texts):
-            surface.blit(text, (8 + pad, 8 + pad + i * line_h))
-
-        if scene.status:
-            text = self._text(self._status_font, scene.status, STATUS_COLOR)
-            w, h = text.get_width() + 16, text.get_height() + 8
-            w = -(-w // 20) * 20
-            x = (self.width - w) // 2
-            y = self.height - h - 10
-            surface.blit(self._panel(w, h), (x, y))
-            surface.blit(text, text.get_rect(center=(x + w // 2, y + h // 2)))
+        self._draw_text_panel(surface, lines)
+        self._draw_status(surface, scene.status)
 
     def _draw_minimap(self, surface: Any, scene: HighwayScene, cars: NDArray[np.float64]) -> None:
         draw = self._pg.draw
@@ -422,45 +259,5 @@ class HighwayRenderer:
         if len(cars):
             colors = np.asarray(scene.cars_color, dtype=np.uint8).reshape(-1, 3).tolist()
             for (px, py), color in zip(self._minimap_points(cars).tolist(), colors, strict=True):
-                draw.circle(surface, color, (x0 + px, y0 + py), 2)
-        ex, ey = self._minimap_points(np.asarray(scene.ego_xy, dtype=np.float64)[None])[0]
-        draw.circle(surface, EGO_COLOR, (x0 + ex, y0 + ey), 4)
-        draw.circle(surface, (255, 255, 255), (x0 + ex, y0 + ey), 4, 1)
-
-    # ------------------------------------------------------------------ public API
-    def render_rgb(self, scene: HighwayScene) -> NDArray[np.uint8]:
-        """Draw ``scene`` off screen; returns a fresh (height, width, 3) uint8 RGB frame."""
-        self._draw(self._surface, scene)
-        data = bytearray(self._pg.image.tobytes(self._surface, "RGB"))
-        return np.frombuffer(data, dtype=np.uint8).reshape(self.height, self.width, 3)
-
-    def render_human(self, scene: HighwayScene) -> None:
-        """Show ``scene`` in a window (opened on the first call), keep it responsive and
-        hold the frame rate to ``render_fps``.
-
-        Closing the window with its close button closes it for good: later calls return
-        at once (see :attr:`window_closed_by_user`).
-        """
-        pg = self._pg
-        if self.window_closed_by_user:
-            return
-        if self._window is None:
-            pg.display.init()
-            pg.display.set_caption("sdc-gym highway")
-            self._window = pg.display.set_mode((self.width, self.height))
-            self._clock = pg.time.Clock()
-        for event in pg.event.get():
-            if event.type == pg.QUIT:
-                self.window_closed_by_user = True
-                self.close()
-                return
-        self._draw(self._window, scene)
-        pg.display.flip()
-        self._clock.tick(self.render_fps)
-
-    def close(self) -> None:
-        """Close the window if one is open; safe to call repeatedly or if never opened."""
-        if self._window is not None:
-            self._window = None
-            self._clock = None
-            self._pg.display.quit()
+                draw.circle(surface, color, (x0 + px, y0 + py), MINIMAP_CAR_PX)
+        self._draw_minimap_car(surface, scene.ego_xy, EGO_COLOR)
