@@ -521,7 +521,7 @@ class FSMBehavior:
         v = world.ego_speed
         for car in world.cars:
             gap = car.gap
-            if gap > p.abort_gap_m or gap < -p.safety_gap_min_m - p.safety_horizon_s * 10.0:
+            if gap > p.abort_gap_m:
                 continue
             # Inside the target lane, or heading into it from the lane beyond.
             offset = (car.d - (target + 0.5) * world.lane_width) * step
