@@ -211,6 +211,18 @@ def classes_to_states(classes: NDArray[np.int64]) -> NDArray[np.int64]:
     return _CLASS_STATES[np.asarray(classes, dtype=np.int64)]
 
 
+def _source_model(owner: str, model: nn.Module | None,
+                  model_path: str | os.PathLike[str] | None, default: Path,
+                  kind: str) -> nn.Module:
+    """The source's model, ready for inference: ``model`` as given, or loaded from
+    ``model_path`` (``default`` when None); giving both is an error naming ``owner``."""
+    if model is None:
+        model = load_classifier(default if model_path is None else model_path, kind)
+    elif model_path is not None:
+        raise ValueError(f"{owner}: give model_path or model, not both")
+    return _prepare(model)
+
+
 def _prepare(model: nn.Module) -> nn.Module:
     model.eval()
     for parameter in model.parameters():
@@ -231,12 +243,8 @@ class CNNLightSource:
 
     def __init__(self, model_path: str | os.PathLike[str] | None = None, *,
                  model: WholeImageCNN | None = None) -> None:
-        if model is None:
-            model = load_classifier(DEFAULT_CNN_PATH if model_path is None else model_path,
-                                    "cnn")
-        elif model_path is not None:
-            raise ValueError("CNNLightSource: give model_path or model, not both")
-        self.model = _prepare(model)
+        self.model = _source_model("CNNLightSource", model, model_path, DEFAULT_CNN_PATH,
+                                   "cnn")
 
     def logits(self, images: NDArray[np.uint8]) -> NDArray[np.float32]:
         """Class logits (N, 3) for frames (N, 150, 200, 3) (or one frame -> shape (1, 3))."""
@@ -294,12 +302,8 @@ class CropLightSource:
     def __init__(self, track: TrackMap, camera_config: CameraConfig | None = None,
                  model_path: str | os.PathLike[str] | None = None, *,
                  model: CropCNN | None = None) -> None:
-        if model is None:
-            model = load_classifier(DEFAULT_CROP_PATH if model_path is None else model_path,
-                                    "crop")
-        elif model_path is not None:
-            raise ValueError("CropLightSource: give model_path or model, not both")
-        self.model = _prepare(model)
+        self.model = _source_model("CropLightSource", model, model_path, DEFAULT_CROP_PATH,
+                                   "crop")
         self.track = track
         self.camera_config = CameraConfig.training() if camera_config is None else camera_config
         self._positions = np.asarray(track.light_positions, dtype=np.float64)
