@@ -13,10 +13,10 @@ from typing import Any, Protocol
 import gymnasium as gym
 
 from agents.highway.fsm import DrivingStyle
-from agents.highway.layered_agent import fsm_agent
+from agents.highway.fsm_agent import fsm_agent
 from agents.lane_keeping import LaneKeepingDriver
 from agents.track.dbw_agent import dbw_agent
-from agents.track.follower import FollowerParameters
+from sdc_gym.stack.track.follower import FollowerParameters
 
 
 class Agent(Protocol):

@@ -13,13 +13,6 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from agents.highway.behavior import (
-    GENTLE_ACCELERATION,
-    LAUNCH_ACCELERATION,
-    MAX_BRAKING,
-    NORMAL_ACCELERATION,
-    BehaviorDecision,
-)
 from agents.highway.fsm import (
     MAX_SPEED_MPS,
     DrivingStyle,
@@ -27,7 +20,14 @@ from agents.highway.fsm import (
     FSMParameters,
     Mode,
 )
-from agents.highway.world_model import LaneView, TrackedCar, WorldModel
+from sdc_gym.stack.highway.behavior import (
+    GENTLE_ACCELERATION,
+    LAUNCH_ACCELERATION,
+    MAX_BRAKING,
+    NORMAL_ACCELERATION,
+    BehaviorDecision,
+)
+from sdc_gym.stack.highway.world_model import LaneView, TrackedCar, WorldModel
 
 WIDTH = 4.0
 LANES = 3

@@ -273,7 +273,7 @@ def test_sources_report_the_light_ahead_and_other_when_none_is_in_view(track, cn
 
 
 def test_sources_follow_the_detector_protocol(cnn_source, crop_source):
-    from agents.track.detector import LightStateSource
+    from sdc_gym.stack.track.detector import LightStateSource
 
     assert isinstance(cnn_source, LightStateSource)
     assert isinstance(crop_source, LightStateSource)

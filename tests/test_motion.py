@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401  (registers the envs)
-from agents.highway.behavior import (
+from sdc_gym.metrics import INCIDENT_KINDS
+from sdc_gym.stack.highway.behavior import (
     GENTLE_ACCELERATION,
     LAUNCH_ACCELERATION,
     MAX_BRAKING,
@@ -23,8 +24,7 @@ from agents.highway.behavior import (
     STEP,
     BehaviorDecision,
 )
-from agents.highway.motion import MotionParameters, SeedMotionPlanner
-from sdc_gym.metrics import INCIDENT_KINDS
+from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
 
 MPH = 0.44704
 SPEED_LIMIT = 50 * MPH

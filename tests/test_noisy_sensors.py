@@ -20,8 +20,8 @@ import pytest
 import yaml
 
 import sdc_gym  # noqa: F401
-from agents.highway.perception import Perception
 from agents.registry import make_agent
+from sdc_gym.stack.highway.perception import Perception
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "highway_noisy_sensors.yaml"
 NEAR = 60.0  # m: the cars the planner brakes and changes lanes for

@@ -1,4 +1,4 @@
-"""Perception (agents.highway.perception): known answers from hand-built observations."""
+"""Perception (sdc_gym.stack.highway.perception): known answers from hand-built observations."""
 
 from __future__ import annotations
 
@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401
-from agents.highway.perception import Perception, PerceptionParameters
-from agents.highway.world_model import NO_CAR, TrackedCar, WorldModel
 from agents.lane_keeping import LaneKeepingDriver
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.perception import Perception, PerceptionParameters
+from sdc_gym.stack.highway.world_model import NO_CAR, TrackedCar, WorldModel
 
 ROAD = get_highway_map("default")
 L = ROAD.length
@@ -428,7 +428,7 @@ def test_lane_views_and_world_models_are_ordinary_frozen_dataclasses():
 
 
 def test_fast_constructors_fall_back_to_the_class_when_it_has_its_own_init_logic():
-    from agents.highway.perception import _fast_constructor
+    from sdc_gym.stack.highway.perception import _fast_constructor
 
     @dataclasses.dataclass(frozen=True)
     class Checked:

@@ -10,32 +10,32 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401
-from agents.track.behavior import StopAtRedLights, StopAtRedParameters, TrackSituation
-from agents.track.controllers import (
+from sdc_gym.lights.traffic_lights import GREEN, RED, UNKNOWN, YELLOW
+from sdc_gym.road.builtin_tracks import get_track_map
+from sdc_gym.road.track_map import TrackMap
+from sdc_gym.stack.track.behavior import StopAtRedLights, StopAtRedParameters, TrackSituation
+from sdc_gym.stack.track.controllers import (
     PID,
     LowPassFilter,
     TwistController,
     TwistControllerParameters,
     YawController,
 )
-from agents.track.detector import (
+from sdc_gym.stack.track.detector import (
     DetectorParameters,
     GroundTruthLightSource,
     LightStateSource,
     TrafficLightDetector,
 )
-from agents.track.follower import PurePursuit, curvature_to_point
-from agents.track.rates import RateScheduler, node_rates
-from agents.track.waypoints import (
+from sdc_gym.stack.track.follower import PurePursuit, curvature_to_point
+from sdc_gym.stack.track.rates import RateScheduler, node_rates
+from sdc_gym.stack.track.waypoints import (
     FinalWaypoints,
     UpdaterParameters,
     WaypointUpdater,
     load_waypoints,
     stop_line_waypoints,
 )
-from sdc_gym.lights.traffic_lights import GREEN, RED, UNKNOWN, YELLOW
-from sdc_gym.road.builtin_tracks import get_track_map
-from sdc_gym.road.track_map import TrackMap
 from sdc_gym.vehicle.dbw_vehicle import DBWVehicle, vehicle_parameters
 
 SIM = vehicle_parameters("sim")

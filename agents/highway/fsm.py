@@ -70,7 +70,7 @@ import enum
 import math
 from dataclasses import dataclass, field, replace
 
-from agents.highway.behavior import (
+from sdc_gym.stack.highway.behavior import (
     GENTLE_ACCELERATION,
     LAUNCH_ACCELERATION,
     MAX_BRAKING,
@@ -78,7 +78,7 @@ from agents.highway.behavior import (
     STEP,
     BehaviorDecision,
 )
-from agents.highway.world_model import LaneView, WorldModel
+from sdc_gym.stack.highway.world_model import LaneView, WorldModel
 
 MPH = 0.44704  # m/s per mph
 MAX_SPEED_MPS = 0.4455 / STEP  # 22.275 m/s = 49.83 mph: the seed's largest distance increment
@@ -286,7 +286,7 @@ class FSMParameters:
 
 
 class FSMBehavior:
-    """The seed's finite state machine as a :class:`~agents.highway.behavior.BehaviorPolicy`.
+    """The seed's finite state machine as a :class:`~sdc_gym.stack.highway.behavior.BehaviorPolicy`.
 
     Args:
         style: picks the default parameters (``FSMParameters.for_style(style)``).

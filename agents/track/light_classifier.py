@@ -30,7 +30,7 @@ Crop classifier (:class:`CropCNN`, :class:`CropLightSource`)
     without running the model. Works at any camera resolution, since the crop is resized.
     3,763 parameters (18 kB); about 0.3 ms per frame, projection included.
 
-Both sources are :class:`~agents.track.detector.LightStateSource` objects:
+Both sources are :class:`~sdc_gym.stack.track.detector.LightStateSource` objects:
 ``classify(observation) -> int`` on the env's observation dict (``camera``; the crop source
 also ``pose`` and ``next_stop_line``), returning the state code RED (0), YELLOW (1) or
 UNKNOWN (4) for *other*: green is not told apart from dark or absent lights, since the
@@ -233,7 +233,7 @@ def _prepare(model: nn.Module) -> nn.Module:
 class CNNLightSource:
     """Red / yellow / other from the whole camera frame (200 x 150) with :class:`WholeImageCNN`.
 
-    A :class:`~agents.track.detector.LightStateSource`: :meth:`classify` takes the env
+    A :class:`~sdc_gym.stack.track.detector.LightStateSource`: :meth:`classify` takes the env
     observation (its ``camera`` image); :meth:`classify_image` takes the frame alone.
 
     Args:
@@ -286,7 +286,7 @@ class CNNLightSource:
 class CropLightSource:
     """Red / yellow / other from the crop of a light, its box projected from the track map.
 
-    A :class:`~agents.track.detector.LightStateSource`: :meth:`classify` takes the env
+    A :class:`~sdc_gym.stack.track.detector.LightStateSource`: :meth:`classify` takes the env
     observation (``camera``, ``pose`` and, if present, ``next_stop_line``, whose index is
     the light to look at: light ``i`` belongs to stop line ``i``); :meth:`classify_image`
     takes the frame and the pose.

@@ -44,8 +44,8 @@ import numpy as np
 from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
-from agents.highway.world_model import NO_CAR, LaneView, TrackedCar, WorldModel
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.world_model import NO_CAR, LaneView, TrackedCar, WorldModel
 
 FloatArray = NDArray[np.float64]
 

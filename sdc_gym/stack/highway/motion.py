@@ -72,8 +72,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.highway.behavior import STEP, BehaviorDecision
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.behavior import STEP, BehaviorDecision
 
 # Columns of the queue: one row per planned state.
 _X, _Y, _S, _D, _HEADING, _INCREMENT = range(6)

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from agents.track.waypoints import FinalWaypoints
+from sdc_gym.stack.track.waypoints import FinalWaypoints
 
 LOOKAHEAD_MIN_M = 6.0
 LOOKAHEAD_GAIN_S = 2.0  # look-ahead per m/s of speed

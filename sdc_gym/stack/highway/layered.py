@@ -1,6 +1,6 @@
 """The layered highway agent: perception -> behavior -> motion, one cycle per env step.
 
-Any :class:`~agents.highway.behavior.BehaviorPolicy` can sit in the middle: the seed's
+Any :class:`~sdc_gym.stack.highway.behavior.BehaviorPolicy` can sit in the middle: the seed's
 finite state machine (:func:`fsm_agent`) or, later, a trained RL policy. The agent's clock
 counts planning cycles: each is ``frames_per_cycle`` frames of 0.02 s (the env's
 ``steps_per_action``, read by :meth:`MotionParameters.for_env`).
@@ -10,16 +10,14 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.highway.behavior import STEP, BehaviorDecision, BehaviorPolicy
-from agents.highway.fsm import DrivingStyle, FSMBehavior
-from agents.highway.motion import MotionParameters, SeedMotionPlanner
-from agents.highway.perception import Perception, PerceptionParameters
-from agents.highway.world_model import WorldModel
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.behavior import STEP, BehaviorDecision, BehaviorPolicy
+from sdc_gym.stack.highway.motion import SeedMotionPlanner
+from sdc_gym.stack.highway.perception import Perception
+from sdc_gym.stack.highway.world_model import WorldModel
 
 
 class LayeredHighwayAgent:
@@ -54,15 +52,3 @@ class LayeredHighwayAgent:
         self.world = self.perception.perceive(observation, clock)
         self.decision = self.behavior.decide(self.world)
         return self.motion.plan(observation, self.decision)
-
-
-def fsm_agent(env: gym.Env, style: DrivingStyle, *, tracking: bool = False,
-              name: str | None = None) -> LayeredHighwayAgent:
-    """The seed's planner for ``env``: ghosting for the Conservative style, Kalman
-    tracking on request, the motion layer timed like the env."""
-    road = env.unwrapped.road
-    perception = Perception(road, PerceptionParameters(
-        ghosting=style is DrivingStyle.CONSERVATIVE, tracking=tracking))
-    label = name or f"fsm_{style.value}{'_kf' if tracking else ''}"
-    return LayeredHighwayAgent(label, road, FSMBehavior(style), perception,
-                               SeedMotionPlanner(road, MotionParameters.for_env(env)))

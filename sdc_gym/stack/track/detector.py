@@ -127,7 +127,7 @@ class TrafficLightDetector:
 
     Args:
         stop_waypoints: (k,) base waypoint index of each stop line (see
-            :func:`~agents.track.waypoints.stop_line_waypoints`).
+            :func:`~sdc_gym.stack.track.waypoints.stop_line_waypoints`).
         source: the light state source (:meth:`detect`); :meth:`process` takes a
             callable instead.
     """

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-from agents.highway.world_model import WorldModel
+from sdc_gym.stack.highway.world_model import WorldModel
 
 # The seed's speed-change rates, converted from metres per step per step (0.02 s steps).
 STEP = 0.02  # s
