@@ -5,6 +5,8 @@
     python evaluate.py --seeds 3 5 8         # these seeds instead of --seed + --episodes
     python evaluate.py --config configs/highway_dense_traffic.yaml --output results/dense
     python evaluate.py --endurance 50        # 50 laps in ONE episode, driving on after incidents
+    python evaluate.py --agent "external:./path_planning" --planner-cwd build \
+        --planner-map ../data/highway_map.csv   # a planner for the original simulator
 
 Prints a table per agent (laps, mean and best lap time, mean speed, miles without incident,
 incidents by kind, max acceleration and jerk) and writes to the output folder, atomically:
@@ -16,6 +18,8 @@ incidents by kind, max acceleration and jerk) and writes to the output folder, a
     profiles.png       speed (mph), acceleration and jerk over distance, first seed per agent
     lap_times.png      every lap time per agent over a box plot
     incident_map.png   the loop with each agent's incidents marked by kind
+    incidents.json     each incident with the last seconds of the ego and nearby cars
+    planner_logs/      the output of external planners (agents "external:COMMAND")
 
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
 ``terminate_on_collision`` off, so incidents are counted and the car drives on, and reports
@@ -35,6 +39,7 @@ import gymnasium as gym
 import yaml
 from rich.console import Console
 
+from agents import external
 from agents.evaluation import (
     SEED_RECORD_MILES,
     EpisodeSpec,
@@ -42,10 +47,12 @@ from agents.evaluation import (
     endurance_table,
     results_table,
     run_episodes,
+    write_incident_reports,
     write_results,
     write_traces,
 )
-from agents.registry import AGENTS
+from agents.incident_reports import DEFAULT_HISTORY_S
+from agents.registry import AGENT_KINDS, AGENTS, parse_agent_spec
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
 
@@ -81,14 +88,32 @@ def load_config(path: Path | None) -> tuple[str | None, dict[str, Any]]:
     return data.get("env"), dict(config)
 
 
+def agent_spec(text: str) -> str:
+    """``--agents`` values: a registered name or a ``kind:argument`` spec."""
+    try:
+        parse_agent_spec(text)
+    except ValueError as error:
+        raise argparse.ArgumentTypeError(str(error)) from None
+    return text
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--agents", nargs="+", default=None,
-                        choices=sorted(AGENTS), metavar="AGENT",
-                        help=f"agents to compare, of: {', '.join(sorted(AGENTS))} "
+    parser.add_argument("--agents", "--agent", nargs="+", default=None, type=agent_spec,
+                        metavar="AGENT",
+                        help=f"agents to compare, of: {', '.join(sorted(AGENTS))}, or "
+                             f"{' '.join(kind + ':ARGUMENT' for kind in sorted(AGENT_KINDS))} "
+                             "(e.g. 'external:./path_planning') "
                              f"(default: {' '.join(DEFAULT_AGENTS)} on the highway, "
                              f"{' '.join(DEFAULT_TRACK_AGENTS)} on the track loop)")
+    parser.add_argument("--incident-history", type=float, default=DEFAULT_HISTORY_S,
+                        metavar="S", help="seconds of ego and nearby-car history in each "
+                        f"incident report, incidents.json (default {DEFAULT_HISTORY_S:g}; "
+                        "0: no reports)")
+    parser.add_argument("--stop-at-incident", action="store_true",
+                        help="end each episode at its first incident")
+    external.add_external_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
     parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
@@ -113,6 +138,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
+    external.check_external_arguments(parser, args)
+    if not args.incident_history >= 0:
+        parser.error(f"--incident-history must be >= 0 s, got {args.incident_history}")
 
     for name in ("episodes", "laps", "endurance", "workers"):
         value = getattr(args, name)
@@ -149,7 +177,19 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
     else:
         env_config["laps"] = args.laps or env_config.get("laps", 1)
         env_config.setdefault("max_duration", SECONDS_PER_LAP * env_config["laps"])
+    external.apply_reply_latency(args, env_config)
     return env_id, env_config
+
+
+def episode_specs(args: argparse.Namespace, env_id: str,
+                  env_config: dict[str, Any]) -> list[EpisodeSpec]:
+    """One episode per (agent, seed), with the incident and external planner options."""
+    return [EpisodeSpec(agent, env_id, seed, env_config,
+                        agent_options=({external.EXTERNAL_KIND: external.external_options(
+                            args, agent, seed)} if external.is_external(agent) else {}),
+                        incident_history=args.incident_history,
+                        stop_at_incident=args.stop_at_incident)
+            for agent in args.agents for seed in args.seeds]
 
 
 def probe_env(env_id: str, env_config: dict[str, Any]) -> tuple[Any, IncidentRules]:
@@ -176,14 +216,14 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         road, rules = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
-    specs = [EpisodeSpec(agent, env_id, seed, env_config)
-             for agent in args.agents for seed in args.seeds]
+    specs = episode_specs(args, env_id, env_config)
+    workers = external.fixed_port_workers(args, args.agents, args.workers)
     console = Console()
     if not console.is_terminal:  # logs and CI: do not squeeze the table into 80 columns
         console = Console(width=260)
 
     started = time.perf_counter()
-    episodes = run_episodes(specs, workers=args.workers, progress=not args.no_progress)
+    episodes = run_episodes(specs, workers=workers, progress=not args.no_progress)
     wall = time.perf_counter() - started
 
     rows = aggregate(episodes)
@@ -191,6 +231,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     files = [args.output / "summary.json", args.output / "episodes.csv"]
     if write_traces(args.output / "traces.npz", episodes):
         files.append(args.output / "traces.npz")
+    if write_incident_reports(args.output / "incidents.json", episodes):
+        files.append(args.output / "incidents.json")
     if not args.no_plots:
         from agents.plots import Limits, write_plots
 
@@ -206,6 +248,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         best = max(episode["longest_distance_without_incident"] for episode in episodes)
         console.print(f"best distance without incident: {best / METERS_PER_MILE:.2f} miles "
                       f"(seed planner's record: {SEED_RECORD_MILES:.2f} miles)")
+    for episode in episodes:  # faults of external planners, stops at an incident
+        if episode.get("abort_message"):
+            console.print(f"{episode['agent']} seed {episode['seed']} ended early, "
+                          f"{episode['termination_reason']}: {episode['abort_message']}",
+                          markup=False, highlight=False)
     console.print(f"{len(episodes)} episode(s) in {wall:.1f} s wall time; results: "
                   + ", ".join(str(path) for path in files))
     return {"rows": rows, "episodes": episodes, "files": files}

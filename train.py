@@ -1,23 +1,35 @@
 """Train a stable-baselines3 policy on an sdc-gym env; every run gets its own folder.
 
-    python train.py --env sdc_gym/HighwayLoop-v0 --timesteps 100000 --output runs/ppo_highway
-    python train.py --output runs/ppo_highway --resume      # continue from the last checkpoint
+    python train.py --config configs/train_highway_behavior.yaml --output runs/ppo_highway
+    python train.py --config configs/train_highway_behavior.yaml --algo dqn --output runs/dqn
+    python train.py --config ... --output runs/x --hp learning_rate=1e-4 --hp n_steps=256
+    python train.py --output runs/ppo_highway --resume    # continue after an interruption
 
-The run folder holds ``config.yaml`` (env id, env config, algorithm, seed), ``command.txt``
-(the exact command), ``checkpoints/`` (saved every ``--checkpoint-every`` steps), the
-TensorBoard log, and ``model.zip`` at the end. With ``--resume`` the newest checkpoint is
-loaded and training continues to the same total number of timesteps.
+The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
+``algo``, ``timesteps``, ``n_envs``, ``seed`` and ``eval`` (``every`` steps, ``episodes``,
+``seed``: the first held-out seed). Hyperparameters come from
+``configs/hyperparams/<algo>.yaml``, keyed by env id (as in rl-baselines3-zoo), and
+``--hp key=value`` overrides them: the value is parsed as YAML (numbers, lists, mappings;
+never evaluated as Python), dotted keys reach into mappings (``policy_kwargs.net_arch=[64]``).
 
-Until the behavior-level environments arrive (their actions are lane and speed decisions),
-the only registered env is the path-level highway, whose (N, 2) path action is hard to
-learn from scratch: this script trains on it honestly, but expect a poor driver.
+The run folder holds ``config.yaml`` (everything above, resolved, with the seed),
+``command.txt`` (each exact command, one per line), ``checkpoints/`` (model and, for
+off-policy algorithms, the replay buffer, every ``--checkpoint-every`` steps),
+``best_model.zip`` (best mean evaluation reward so far), ``evaluations.npz``,
+``replay_buffer.pkl`` (DQN, SAC: the final buffer),
+``tensorboard/`` (SB3's curves plus ``driving/``: collision and incident rates per
+episode, lap time, mean speed, success) and ``model.zip`` at the end. With ``--resume``
+the newest checkpoint is loaded and training continues to the same total of timesteps.
+Envs run in ``n_envs`` subprocesses (default: one per CPU core).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import shlex
 import sys
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -26,80 +38,246 @@ import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
 
-ALGORITHMS = ("ppo",)
+ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
+HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
+RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval"}
+EVAL_DEFAULTS = {"every": 50_000, "episodes": 4, "seed": 10_000}
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--env", default="sdc_gym/HighwayLoop-v0", help="registered env id")
-    parser.add_argument("--config", type=Path, default=None,
-                        help="YAML with 'env' and/or 'config' (env overrides), as for evaluate.py")
-    parser.add_argument("--algo", default="ppo", choices=ALGORITHMS)
-    parser.add_argument("--timesteps", type=int, default=100_000, help="total env steps")
-    parser.add_argument("--n-envs", type=int, default=1, help="parallel envs (subprocesses)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--config", type=Path, default=None, help="run config YAML")
+    parser.add_argument("--env", default=None, help="env id (overrides the config's)")
+    parser.add_argument("--algo", default=None, choices=ALGORITHMS)
+    parser.add_argument("--timesteps", type=int, default=None, help="total env steps")
+    parser.add_argument("--n-envs", type=int, default=None, help="parallel envs (processes)")
+    parser.add_argument("--seed", type=int, default=None)
+    parser.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
+                        help="hyperparameter override (YAML value; repeatable)")
     parser.add_argument("--output", type=Path, required=True, help="run folder")
     parser.add_argument("--checkpoint-every", type=int, default=10_000, help="env steps")
+    parser.add_argument("--eval-every", type=int, default=None,
+                        help="env steps between evaluations (0: none)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --output")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--torch-threads", type=int, default=1,
+                        help="torch threads in the learner (small MLPs: 1 is fastest, and "
+                             "the env processes keep the other cores)")
     args = parser.parse_args(argv)
-    if args.timesteps < 1 or args.n_envs < 1 or args.checkpoint_every < 1:
-        parser.error("--timesteps, --n-envs and --checkpoint-every must be >= 1")
+    for name in ("timesteps", "n_envs", "checkpoint_every"):
+        value = getattr(args, name)
+        if value is not None and value < 1:
+            parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
     return args
 
 
+def parse_override(text: str) -> tuple[list[str], Any]:
+    """``"a.b=value"`` -> (["a", "b"], value parsed as YAML); a clear error otherwise."""
+    key, sep, raw = text.partition("=")
+    if not sep or not key.strip() or any(not part for part in key.strip().split(".")):
+        raise SystemExit(f"--hp {text!r}: expected KEY=VALUE, e.g. learning_rate=3e-4")
+    try:
+        value = yaml.safe_load(raw)
+    except yaml.YAMLError as error:
+        raise SystemExit(f"--hp {text!r}: the value is not valid YAML: {error}") from None
+    return key.strip().split("."), value
+
+
+def apply_overrides(params: dict[str, Any], overrides: list[str]) -> dict[str, Any]:
+    params = dict(params)
+    for text in overrides:
+        path, value = parse_override(text)
+        node = params
+        for part in path[:-1]:
+            child = node.get(part)
+            node[part] = dict(child) if isinstance(child, dict) else {}
+            node = node[part]
+        node[path[-1]] = value
+    return params
+
+
+def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
+    """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` ({} if the
+    file has no entry for it: SB3's defaults)."""
+    path = HYPERPARAMS_DIR / f"{algo}.yaml"
+    if not path.is_file():
+        return {}
+    table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    return dict(table.get(env_id) or {})
+
+
+def read_yaml(path: Path) -> dict[str, Any]:
+    if not path.is_file():
+        raise SystemExit(f"{path}: no such file")
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
+    except yaml.YAMLError as error:
+        raise SystemExit(f"{path}: not valid YAML: {error}") from None
+    if not isinstance(data, dict):
+        raise SystemExit(f"{path}: expected a mapping")
+    return data
+
+
 def run_config(args: argparse.Namespace) -> dict[str, Any]:
-    """The run's recorded configuration (a resumed run reads it back from its folder)."""
+    """The run's resolved configuration (a resumed run reads it back from its folder)."""
     saved = args.output / "config.yaml"
     if args.resume:
         if not saved.is_file():
             raise SystemExit(f"--resume: no run to resume in {args.output} (no config.yaml)")
-        return yaml.safe_load(saved.read_text(encoding="utf-8"))
-    env_id, env_config = args.env, {}
-    if args.config is not None:
-        data = yaml.safe_load(args.config.read_text(encoding="utf-8")) or {}
-        env_id, env_config = data.get("env", env_id), dict(data.get("config") or {})
-    return {"env": env_id, "config": env_config, "algo": args.algo, "seed": args.seed,
-            "timesteps": args.timesteps, "n_envs": args.n_envs}
+        return read_yaml(saved)
+    if saved.is_file():
+        raise SystemExit(f"{args.output} already holds a run; use --resume or another --output")
+    data = read_yaml(args.config) if args.config is not None else {}
+    unknown = set(data) - RUN_KEYS
+    if unknown:
+        raise SystemExit(f"{args.config}: unknown keys {sorted(unknown)}; valid: "
+                         f"{sorted(RUN_KEYS)}")
+    env_id = args.env or data.get("env", "sdc_gym/HighwayLoopBehavior-v0")
+    algo = args.algo or data.get("algo", "ppo")
+    if algo not in ALGORITHMS:
+        raise SystemExit(f"unknown algo {algo!r}; valid: {list(ALGORITHMS)}")
+    hyper = load_hyperparams(algo, env_id)
+    hyper = apply_overrides(hyper, args.hp)
+    n_envs = args.n_envs or hyper.pop("n_envs", None) or data.get("n_envs") or os.cpu_count()
+    timesteps = args.timesteps or hyper.pop("timesteps", None) or data.get("timesteps",
+                                                                          100_000)
+    hyper.pop("n_envs", None)
+    hyper.pop("timesteps", None)
+    evaluation = {**EVAL_DEFAULTS, **(data.get("eval") or {})}
+    if args.eval_every is not None:
+        evaluation["every"] = args.eval_every
+    return {"env": env_id, "config": dict(data.get("config") or {}), "algo": algo,
+            "seed": args.seed if args.seed is not None else int(data.get("seed", 0)),
+            "timesteps": int(timesteps), "n_envs": int(n_envs), "hyperparams": hyper,
+            "eval": evaluation}
+
+
+def algorithm_class(name: str) -> type:
+    import stable_baselines3
+
+    return getattr(stable_baselines3, name.upper())
+
+
+def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
+    from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    env_id = config["env"]
+    if env_id.startswith("sdc_gym/"):  # subprocesses import the package that registers it
+        env_id = f"sdc_gym:{env_id}"
+    return sb3_make_vec_env(env_id, n_envs=n_envs, seed=seed,
+                            env_kwargs={"config": config["config"]},
+                            vec_env_cls=SubprocVecEnv if n_envs > 1 else DummyVecEnv)
+
+
+def driving_callback() -> Any:
+    """Logs each finished episode's driving summary to TensorBoard (``driving/``)."""
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class DrivingMetricsCallback(BaseCallback):
+        def _on_step(self) -> bool:
+            for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
+                summary = info.get("summary") if done else None
+                if not summary:
+                    continue
+                incidents = summary.get("incidents", {})
+                for kind, count in incidents.items():
+                    self.logger.record_mean(f"driving/{kind}_per_episode", count)
+                self.logger.record_mean("driving/incidents_per_episode",
+                                        sum(incidents.values()))
+                self.logger.record_mean("driving/success", float(summary.get("is_success",
+                                                                             False)))
+                for lap in summary.get("lap_times") or ():
+                    self.logger.record_mean("driving/lap_time_s", lap)
+                if summary.get("mean_speed_mph") is not None:
+                    self.logger.record_mean("driving/mean_speed_mph",
+                                            summary["mean_speed_mph"])
+            return True
+
+    return DrivingMetricsCallback()
+
+
+def latest_checkpoint(folder: Path) -> Path | None:
+    """The checkpoint with the most timesteps (names end in ``_<steps>_steps.zip``)."""
+    def steps(path: Path) -> int:
+        return int(path.stem.rsplit("_", 2)[-2])
+
+    return max(folder.glob("*_steps.zip"), key=steps, default=None)
 
 
 def main(argv: list[str] | None = None) -> Path:
-    from stable_baselines3 import PPO
-    from stable_baselines3.common.callbacks import CheckpointCallback
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import SubprocVecEnv
+    import torch
+    from stable_baselines3.common.callbacks import (
+        CallbackList,
+        CheckpointCallback,
+        EvalCallback,
+        ProgressBarCallback,
+    )
 
     args = parse_args(argv)
+    torch.set_num_threads(max(args.torch_threads, 1))
     config = run_config(args)
+    gym.spec(config["env"])  # a clear error for an unknown id before any process starts
     args.output.mkdir(parents=True, exist_ok=True)
     if not args.resume:
-        (args.output / "config.yaml").write_text(yaml.safe_dump(config), encoding="utf-8")
+        atomic_write(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:
-        handle.write(shlex.join([sys.executable, *sys.argv]) + "\n")
+        handle.write(shlex.join([sys.executable, *(sys.argv if argv is None else
+                                                   ["train.py", *argv])]) + "\n")
 
-    gym.spec(config["env"])  # a clear error for an unknown id before any process starts
-    vec_env = make_vec_env(
-        config["env"], n_envs=config["n_envs"], seed=config["seed"],
-        env_kwargs={"config": config["config"]},
-        vec_env_cls=SubprocVecEnv if config["n_envs"] > 1 else None)
+    algo = algorithm_class(config["algo"])
+    vec_env = make_vec_env(config, config["n_envs"], config["seed"])
     checkpoints = args.output / "checkpoints"
-    latest = max(checkpoints.glob("*.zip"), key=lambda p: p.stat().st_mtime, default=None)
-    if args.resume and latest is not None:
-        model = PPO.load(latest, env=vec_env)
+    latest = latest_checkpoint(checkpoints) if args.resume else None
+    off_policy = config["algo"] in ("dqn", "sac")
+    if latest is not None:
+        model = algo.load(latest, env=vec_env, tensorboard_log=str(args.output / "tensorboard"))
+        steps = latest.stem.rsplit("_", 2)[-2]
+        buffer = checkpoints / f"{config['algo']}_replay_buffer_{steps}_steps.pkl"
+        if off_policy and buffer.is_file():
+            model.load_replay_buffer(buffer)
     else:
-        model = PPO("MultiInputPolicy" if isinstance(vec_env.observation_space, gym.spaces.Dict)
-                    else "MlpPolicy", vec_env, seed=config["seed"], verbose=0,
-                    tensorboard_log=str(args.output / "tensorboard"))
-    callback = CheckpointCallback(max(args.checkpoint_every // config["n_envs"], 1),
-                                  str(checkpoints), name_prefix=config["algo"])
+        hyper = dict(config["hyperparams"])
+        policy = hyper.pop("policy", "MultiInputPolicy" if isinstance(
+            vec_env.observation_space, gym.spaces.Dict) else "MlpPolicy")
+        model = algo(policy, vec_env, seed=config["seed"], verbose=0,
+                     tensorboard_log=str(args.output / "tensorboard"), **hyper)
+    every = max(args.checkpoint_every // config["n_envs"], 1)
+    callbacks = [CheckpointCallback(every, str(checkpoints), name_prefix=config["algo"],
+                                    save_replay_buffer=off_policy),
+                 driving_callback()]
+    evaluation = config["eval"]
+    if evaluation["every"]:
+        # Evaluation runs in this process; SB3 warns that its vec env class differs.
+        warnings.filterwarnings("ignore", message="Training and eval env are not of the same")
+        eval_env = make_vec_env(config, 1, int(evaluation["seed"]))
+        callbacks.append(EvalCallback(
+            eval_env, n_eval_episodes=int(evaluation["episodes"]),
+            eval_freq=max(int(evaluation["every"]) // config["n_envs"], 1),
+            best_model_save_path=str(args.output), log_path=str(args.output),
+            deterministic=True, verbose=0))
+    if not args.no_progress:
+        callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps
     if remaining > 0:
-        model.learn(remaining, callback=callback, reset_num_timesteps=not args.resume,
-                    progress_bar=False)
-    model.save(args.output / "model")
+        model.learn(remaining, callback=CallbackList(callbacks),
+                    reset_num_timesteps=latest is None, tb_log_name=config["algo"])
+    final = args.output / "model.zip"
+    temporary = args.output / "model.tmp.zip"
+    model.save(temporary)
+    os.replace(temporary, final)
+    if off_policy:  # with the final model, so that a longer run can continue from here
+        model.save_replay_buffer(args.output / "replay_buffer.pkl")
     vec_env.close()
-    print(f"trained {model.num_timesteps} steps; model: {args.output / 'model.zip'}")
-    return args.output / "model.zip"
+    print(f"trained {model.num_timesteps} steps; model: {final}")
+    return final
+
+
+def atomic_write(path: Path, text: str) -> None:
+    temporary = path.with_suffix(path.suffix + ".tmp")
+    temporary.write_text(text, encoding="utf-8")
+    os.replace(temporary, path)
 
 
 if __name__ == "__main__":

@@ -29,6 +29,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 import sdc_gym  # noqa: F401  (registers the env ids)
+from agents.incident_reports import DEFAULT_HISTORY_S, IncidentRecorder
 from agents.registry import make_agent
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.units import METERS_PER_MILE
@@ -36,10 +37,15 @@ from sdc_gym.units import METERS_PER_MILE
 
 @dataclass(frozen=True)
 class EpisodeSpec:
-    """What to run: agent name, env id and config overrides, seed.
+    """What to run: agent name (or ``kind:argument`` spec), env id and config overrides, seed.
 
     ``trace_points`` caps the per-step trace kept for plots (0: no trace); longer episodes
     keep every 2nd, 4th, ... step so that the trace stays within the cap.
+    ``agent_options`` are options per agent kind (``{"external": {"cwd": ...}}``, see
+    ``agents.registry.make_agent``). ``incident_history`` is the seconds of history in each
+    incident report (0: no reports, see :mod:`agents.incident_reports`);
+    ``stop_at_incident`` ends the episode at its first incident (termination reason
+    ``stop_at_incident``).
     """
 
     agent: str
@@ -47,6 +53,19 @@ class EpisodeSpec:
     seed: int
     env_config: dict[str, Any] = field(default_factory=dict)
     trace_points: int = 250_000
+    agent_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    incident_history: float = DEFAULT_HISTORY_S
+    stop_at_incident: bool = False
+
+
+class EpisodeAborted(Exception):
+    """Raised by an agent's ``act`` to end the episode now, e.g. an external planner's
+    fault: ``reason`` becomes the episode's ``termination_reason``, the message its
+    ``abort_message``."""
+
+    def __init__(self, reason: str, message: str) -> None:
+        super().__init__(message)
+        self.reason = reason
 
 
 TRACE_FIELDS: tuple[str, ...] = ("time", "distance", "speed", "acceleration", "jerk")
@@ -56,6 +75,9 @@ TRACE_FIELDS: tuple[str, ...] = ("time", "distance", "speed", "acceleration", "j
 
 TRACE_KEY = "trace"
 """Key of the :class:`EpisodeTrace` in :func:`run_episode`'s result (never written to JSON)."""
+REPORTS_KEY = "incident_reports"
+"""Key of the incident reports in :func:`run_episode`'s result (they go to their own file,
+see :func:`write_incident_reports`)."""
 
 
 @dataclass(frozen=True)
@@ -125,38 +147,82 @@ def run_episode(spec: EpisodeSpec, progress: ProgressCallback | None = None) -> 
     """Drive one episode to its end; returns the env's summary plus identification.
 
     With ``spec.trace_points`` > 0 the result has a ``"trace"`` (:class:`EpisodeTrace`),
-    which :func:`write_results` leaves out of the JSON and CSV (see :func:`write_traces`).
+    which :func:`write_results` leaves out of the JSON and CSV (see :func:`write_traces`);
+    likewise ``"incident_reports"`` (:func:`write_incident_reports`).
     ``progress`` is called every :data:`PROGRESS_EVERY_STEPS` env steps.
+
+    Agents with ``wants_info = True`` are called as ``act(observation, info)`` (an
+    external planner needs ``info["telemetry"]``); an agent with ``close()`` is closed at
+    the end; one with ``episode_extras()`` adds its figures to the result. An agent may
+    end the episode early by raising :class:`EpisodeAborted`, and ``spec.stop_at_incident``
+    ends it at the first incident; the summary is then the env's at that moment.
     """
     env = gym.make(spec.env_id, config=spec.env_config)
+    agent = None
     try:
-        agent = make_agent(spec.agent, env)
+        agent = make_agent(spec.agent, env, spec.agent_options)
         agent.reset()
+        with_info = bool(getattr(agent, "wants_info", False))
         road = getattr(env.unwrapped, "road", None)
         loop_length = float(road.length) if road is not None else 0.0
         recorder = TraceRecorder(spec.trace_points) if spec.trace_points > 0 else None
+        incidents = (IncidentRecorder(spec.incident_history) if spec.incident_history > 0
+                     else None)
         observation, info = env.reset(seed=spec.seed)
         if recorder is not None:
             recorder.add(info)
+        if incidents is not None:
+            incidents.add(observation, info)
         started = time.perf_counter()
         steps = 0
+        stopped: EpisodeAborted | None = None
         while True:
-            observation, _, terminated, truncated, info = env.step(agent.act(observation))
+            try:
+                action = agent.act(observation, info) if with_info else agent.act(observation)
+            except EpisodeAborted as abort:
+                stopped = abort
+                break
+            observation, _, terminated, truncated, info = env.step(action)
             steps += 1
             if recorder is not None:
                 recorder.add(info)
+            if incidents is not None:
+                incidents.add(observation, info)
             if terminated or truncated:
+                break
+            if spec.stop_at_incident and info["new_incidents"]:
+                stopped = EpisodeAborted("stop_at_incident", "stopped at the first incident: "
+                                         + ", ".join(info["new_incidents"]))
                 break
             if progress is not None and steps % PROGRESS_EVERY_STEPS == 0:
                 progress(_laps_done(info, loop_length), info)
         wall = time.perf_counter() - started
+        summary = dict(info["summary"]) if stopped is None else _summary_now(env, stopped)
+        extras = getattr(agent, "episode_extras", None)
+        if extras is not None:
+            summary.update(extras())
     finally:
+        close = getattr(agent, "close", None)
+        if close is not None:
+            close()
         env.close()
-    summary = dict(info["summary"])
     summary.update(agent=spec.agent, env_id=spec.env_id, seed=spec.seed, env_steps=steps,
                    wall_time=wall)
     if recorder is not None:
         summary[TRACE_KEY] = recorder.finish()
+    if incidents is not None:
+        summary[REPORTS_KEY] = incidents.reports(summary.get("incident_log", []))
+    return summary
+
+
+def _summary_now(env: gym.Env, stopped: EpisodeAborted) -> dict[str, Any]:
+    """The env's end-of-episode summary for an episode ended early by ``stopped``.
+
+    The envs build it only on their final step, and offer no public call for it: this
+    uses their ``_summary()`` (both sdc-gym envs have one) and sets the reason.
+    """
+    summary = dict(env.unwrapped._summary())
+    summary.update(termination_reason=stopped.reason, abort_message=str(stopped))
     return summary
 
 
@@ -396,9 +462,21 @@ def atomic_write_bytes(path: Path, data: bytes) -> None:
 
 
 def without_traces(episodes: Iterable[dict[str, Any]]) -> list[dict[str, Any]]:
-    """The episodes without their :class:`EpisodeTrace` (what goes into JSON and CSV)."""
-    return [{key: value for key, value in episode.items() if key != TRACE_KEY}
+    """The episodes without their :class:`EpisodeTrace` and incident reports (what goes
+    into JSON and CSV)."""
+    return [{key: value for key, value in episode.items() if key not in (TRACE_KEY, REPORTS_KEY)}
             for episode in episodes]
+
+
+def write_incident_reports(path: Path, episodes: Iterable[dict[str, Any]]) -> int:
+    """Every episode's incident reports as one JSON list (atomically), each report led by
+    its agent and seed; returns how many (no file when there are none)."""
+    reports = [{"agent": episode["agent"], "seed": episode["seed"], **report}
+               for episode in episodes for report in episode.get(REPORTS_KEY, ())]
+    if reports:
+        # One report per line: its history's long number lists stay compact.
+        atomic_write_text(path, "[\n" + ",\n".join(map(json.dumps, reports)) + "\n]\n")
+    return len(reports)
 
 
 def write_results(output: Path, episodes: list[dict[str, Any]],

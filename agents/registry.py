@@ -51,8 +51,66 @@ AGENTS: dict[str, AgentFactory] = {
 }
 
 
-def make_agent(name: str, env: gym.Env) -> Agent:
-    """Build the agent called ``name`` for ``env``; unknown names list the valid ones."""
-    if name not in AGENTS:
-        raise ValueError(f"unknown agent {name!r}; valid agents: {', '.join(sorted(AGENTS))}")
-    return AGENTS[name](env)
+AgentKindFactory = Callable[..., Agent]
+"""``factory(argument, env, **options)``: builds the agent of a ``"kind:argument"`` spec."""
+
+
+def _external_agent(argument: str, env: gym.Env, **options: Any) -> Agent:
+    from agents.external import external_agent  # the websocket client only when used
+
+    return external_agent(argument, env, **options)
+
+
+def _policy_agent(kind: str, argument: str, env: gym.Env) -> Agent:
+    from agents.policy_agent import policy_agent  # SB3 and torch only when used
+
+    return policy_agent(env, kind, argument)
+
+
+AGENT_KINDS: dict[str, AgentKindFactory] = {
+    # A planner written for the original highway simulator, run per episode and driven
+    # through its wire protocol: "external:./path_planning" (agents/external.py).
+    "external": _external_agent,
+    # Trained stable-baselines3 policies of the behavior-level envs, in the place of the
+    # rule-based behavior layer: "ppo:agents/highway/policies/ppo_highway.zip"
+    # (agents/policy_agent.py).
+    **{kind: (lambda argument, env, _kind=kind, **options: _policy_agent(_kind, argument, env))
+       for kind in ("ppo", "dqn", "sac", "a2c")},
+}
+"""Agent specs ``"kind:argument"``, an agent per argument (a command, a model file...)."""
+
+AGENT_KIND_SEPARATOR = ":"
+
+
+def _valid_agents() -> str:
+    kinds = ", ".join(f"{kind}:ARGUMENT" for kind in sorted(AGENT_KINDS))
+    return f"valid agents: {', '.join(sorted(AGENTS))}; or a spec {kinds}"
+
+
+def parse_agent_spec(spec: str) -> tuple[str | None, str]:
+    """``(kind, argument)`` of a ``"kind:argument"`` spec, ``(None, name)`` of a plain name.
+
+    Raises ``ValueError`` listing the valid names and kinds for anything else.
+    """
+    if spec in AGENTS:
+        return None, spec
+    kind, separator, argument = spec.partition(AGENT_KIND_SEPARATOR)
+    if not separator:
+        raise ValueError(f"unknown agent {spec!r}; {_valid_agents()}")
+    if kind not in AGENT_KINDS:
+        raise ValueError(f"unknown agent kind {kind!r} in {spec!r}; {_valid_agents()}")
+    if not argument.strip():
+        raise ValueError(f"agent spec {spec!r} needs an argument after {kind!r}:, "
+                         f"e.g. {kind}:./path_planning")
+    return kind, argument
+
+
+def make_agent(name: str, env: gym.Env,
+               options: dict[str, dict[str, Any]] | None = None) -> Agent:
+    """Build the agent ``name`` for ``env``: a name of :data:`AGENTS` or a
+    ``"kind:argument"`` spec of :data:`AGENT_KINDS`, whose factory also gets
+    ``options[kind]`` as keyword arguments. Unknown names list the valid ones."""
+    kind, argument = parse_agent_spec(name)
+    if kind is None:
+        return AGENTS[argument](env)
+    return AGENT_KINDS[kind](argument, env, **(options or {}).get(kind, {}))

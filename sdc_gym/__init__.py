@@ -16,6 +16,8 @@ __version__ = "0.1.0"
 _ENVIRONMENTS = {
     "sdc_gym/HighwayLoop-v0": "sdc_gym.envs.highway_loop:HighwayLoopEnv",
     "sdc_gym/TrackLoop-v0": "sdc_gym.envs.track_loop:TrackLoopEnv",
+    "sdc_gym/HighwayLoopBehavior-v0": "sdc_gym.envs.highway_behavior:HighwayLoopBehaviorEnv",
+    "sdc_gym/TrackLoopBehavior-v0": "sdc_gym.envs.track_behavior:TrackLoopBehaviorEnv",
 }
 
 for _env_id, _entry_point in _ENVIRONMENTS.items():

@@ -1,31 +1,95 @@
-"""train.py: a short real PPO run writes its run folder and resumes from a checkpoint."""
+"""train.py: real short runs write their run folder, resume after an interruption, take
+hyperparameters from YAML by env id with command-line overrides, and log driving metrics."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
 import train
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
+SHORT = {"highway": {"max_duration": 20.0}}
 
 
-def test_train_writes_the_run_folder_and_resumes_after_an_interruption(tmp_path):
+def write_config(tmp_path: Path, **extra) -> Path:
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", "config": SHORT,
+                                    "eval": {"every": 0}, **extra}))
+    return path
+
+
+def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path):
     from stable_baselines3 import PPO
 
     output = tmp_path / "run"
-    model = train.main(["--config", str(CONFIGS / "highway_oval.yaml"), "--output",
-                        str(output), "--checkpoint-every", "1024", "--timesteps", "2048"])
+    args = ["--config", str(write_config(tmp_path)), "--output", str(output), "--n-envs", "2",
+            "--timesteps", "512", "--checkpoint-every", "256", "--hp", "n_steps=128",
+            "--hp", "batch_size=64", "--hp", "policy_kwargs.net_arch=[16]",
+            "--eval-every", "256", "--no-progress"]
+    model = train.main(args)
     config = yaml.safe_load((output / "config.yaml").read_text())
-    assert config["env"] == "sdc_gym/HighwayLoop-v0" and config["config"]["map"] == "oval"
-    assert PPO.load(model).num_timesteps == 2048  # one PPO rollout of 2048 steps
+    assert config["algo"] == "ppo" and config["seed"] == 0 and config["n_envs"] == 2
+    # ppo.yaml's entry for the env, with the overrides applied (parsed as YAML, not eval).
+    assert config["hyperparams"]["n_steps"] == 128 and config["hyperparams"]["gamma"] == 0.99
+    assert config["hyperparams"]["policy_kwargs"] == {"net_arch": [16]}
+    loaded = PPO.load(model)
+    assert loaded.num_timesteps == 512 and loaded.n_steps == 128
+    assert (output / "best_model.zip").is_file() and (output / "evaluations.npz").is_file()
     checkpoints = sorted((output / "checkpoints").glob("*.zip"))
-    assert [p.name for p in checkpoints] == ["ppo_1024_steps.zip", "ppo_2048_steps.zip"]
+    assert [p.name for p in checkpoints] == ["ppo_256_steps.zip", "ppo_512_steps.zip"]
+    events = list((output / "tensorboard").rglob("events.out.tfevents.*"))
+    assert events
     # Interrupted after the first checkpoint: only it survives.
     checkpoints[1].unlink()
     model.unlink()
-    train.main(["--output", str(output), "--resume"])
-    resumed = PPO.load(model)
-    assert resumed.num_timesteps > 2048  # 1024 restored + one more 2048-step rollout
+    train.main(["--output", str(output), "--resume", "--no-progress"])
+    assert PPO.load(model).num_timesteps == 512  # 256 restored + two 128 x 2 rollouts... capped
     assert len((output / "command.txt").read_text().splitlines()) == 2
+    with pytest.raises(SystemExit, match="already holds a run"):
+        train.main(args)
+
+
+def test_dqn_resumes_with_its_replay_buffer(tmp_path):
+    from stable_baselines3 import DQN
+    from stable_baselines3.common.save_util import load_from_pkl
+
+    output = tmp_path / "dqn"
+    train.main(["--config", str(write_config(tmp_path)), "--algo", "dqn", "--output",
+                str(output), "--n-envs", "1", "--timesteps", "300", "--checkpoint-every",
+                "150", "--hp", "learning_starts=50", "--hp", "buffer_size=1000",
+                "--eval-every", "0", "--no-progress"])
+    names = sorted(p.name for p in (output / "checkpoints").iterdir())
+    assert names == ["dqn_150_steps.zip", "dqn_300_steps.zip",
+                     "dqn_replay_buffer_150_steps.pkl", "dqn_replay_buffer_300_steps.pkl"]
+    (output / "checkpoints" / "dqn_300_steps.zip").unlink()
+    (output / "checkpoints" / "dqn_replay_buffer_300_steps.pkl").unlink()
+    train.main(["--output", str(output), "--resume", "--no-progress"])
+    assert 300 <= DQN.load(output / "model.zip").num_timesteps < 310
+    # The resumed run started from the 150-step buffer: its final buffer holds both parts.
+    assert load_from_pkl(output / "replay_buffer").size() >= 300
+
+
+def test_bad_overrides_and_configs_are_clear_errors(tmp_path):
+    with pytest.raises(SystemExit, match="KEY=VALUE"):
+        train.parse_override("learning_rate")
+    assert train.parse_override("policy_kwargs.net_arch=[64, 64]") == (
+        ["policy_kwargs", "net_arch"], [64, 64])
+    # A value is data: "__import__('os')" stays a string, never code.
+    assert train.parse_override("x=__import__('os')")[1] == "__import__('os')"
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", "algos": "ppo"}))
+    with pytest.raises(SystemExit, match="unknown keys"):
+        train.main(["--config", str(bad), "--output", str(tmp_path / "x")])
+    with pytest.raises(SystemExit, match="no run to resume"):
+        train.main(["--output", str(tmp_path / "nothing"), "--resume"])
+
+
+def test_committed_training_config_resolves():
+    args = train.parse_args(["--config", str(CONFIGS / "train_highway_behavior.yaml"),
+                             "--output", "/nonexistent/run"])
+    config = train.run_config(args)
+    assert config["env"] == "sdc_gym/HighwayLoopBehavior-v0" and config["algo"] == "ppo"
+    assert config["timesteps"] > 0 and config["hyperparams"]["n_steps"] > 0

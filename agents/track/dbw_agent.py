@@ -6,11 +6,10 @@ from __future__ import annotations
 import gymnasium as gym
 
 from sdc_gym.stack.track.behavior import TrackBehaviorPolicy
-from sdc_gym.stack.track.dbw_stack import DEFAULT_FRONT_OFFSET_M, DBWStackAgent
+from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
 from sdc_gym.stack.track.detector import GroundTruthLightSource, LightStateSource
-from sdc_gym.stack.track.follower import CONTINUOUS_FOLLOWER, FollowerParameters
+from sdc_gym.stack.track.follower import FollowerParameters
 from sdc_gym.stack.track.rates import NodeRates
-from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
 LIGHT_SOURCES = ("ground_truth", "cnn", "crop")
 """Light source names :func:`dbw_agent` builds itself (or pass any LightStateSource)."""
@@ -68,18 +67,12 @@ def dbw_agent(
             the original's hold-until-0.2 m-off rule, which weaves about +-0.25 m).
         name: label (default ``dbw_<source>_<rates>``).
     """
-    unwrapped = env.unwrapped
     if isinstance(light_source, str):
         source = light_source_for(env, light_source)
         label = light_source
     else:
         source = light_source
         label = type(light_source).__name__
-    loop = PHYSICS_DT * int(getattr(unwrapped, "steps_per_action", 1))
     rates_label = rates if isinstance(rates, str) else "custom"
-    return DBWStackAgent(
-        name or f"dbw_{label}_{rates_label}", unwrapped.track, unwrapped.params, source,
-        speed_limit_mps=unwrapped.speed_limit, loop_period_s=loop, rates=rates,
-        behavior=behavior,
-        follower_params=CONTINUOUS_FOLLOWER if follower is None else follower,
-        front_offset_m=float(getattr(unwrapped, "front_offset", DEFAULT_FRONT_OFFSET_M)))
+    return dbw_stack_for_env(env, source, name=name or f"dbw_{label}_{rates_label}",
+                             rates=rates, behavior=behavior, follower=follower)

@@ -27,6 +27,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
@@ -53,6 +54,7 @@ from sdc_gym.stack.track.detector import (
     next_stop_line,
 )
 from sdc_gym.stack.track.follower import (
+    CONTINUOUS_FOLLOWER,
     FollowerParameters,
     PurePursuit,
     TwistCommand,
@@ -158,14 +160,20 @@ class DBWStackAgent:
         self.command: DBWCommand = NO_COMMAND
         self.node_runs = dict.fromkeys(self.scheduler.names, 0)
 
-    def _situation(self, now: float, speed: float, line: int, distance: float) -> TrackSituation:
+    def situation(self, observation: Mapping[str, Any],
+                  time_s: float | None = None) -> TrackSituation:
+        """What the behavior layer sees at ``time_s`` (default: the next tick's time): the
+        next stop line of ``observation`` and the detector's last report (its state only
+        if it is about that line)."""
+        line, distance = next_stop_line(observation)
         report = self.light_report
         state = report.state if report.stop_line == line else UNKNOWN
         waypoint = int(self.detector.stop_waypoints[line]) if line >= 0 else -1
-        return TrackSituation(time_s=now, speed_mps=speed, speed_limit_mps=self.speed_limit_mps,
-                              stop_line=line, stop_waypoint=waypoint,
-                              stop_line_distance_m=distance, light_state=state,
-                              stop_margin_m=self.stop_margin_m)
+        return TrackSituation(time_s=self.scheduler.time_s if time_s is None else time_s,
+                              speed_mps=float(observation["velocity"][0]),
+                              speed_limit_mps=self.speed_limit_mps, stop_line=line,
+                              stop_waypoint=waypoint, stop_line_distance_m=distance,
+                              light_state=state, stop_margin_m=self.stop_margin_m)
 
     def act(self, observation: Mapping[str, Any]) -> NDArray[np.float32]:
         """``[throttle, brake torque N m, steering-wheel angle rad]`` for this step."""
@@ -178,9 +186,7 @@ class DBWStackAgent:
             if node == "detector":
                 self.light_report = self.detector.detect(observation, now)
             elif node == "updater":
-                line, distance = next_stop_line(observation)
-                self.decision = self.behavior.decide(
-                    self._situation(now, speed, line, distance))
+                self.decision = self.behavior.decide(self.situation(observation, now))
                 light_time = self.light_report.time_s if self.track.light_count else None
                 self.final_waypoints = self.updater.update(
                     now, x, y, yaw, now, self.decision.stop_waypoint, light_time,
@@ -196,3 +202,25 @@ class DBWStackAgent:
         command = self.command
         return np.array([command.throttle, command.brake_torque, command.steering],
                         dtype=np.float32)
+
+
+def dbw_stack_for_env(
+    env: gym.Env,
+    light_source: LightStateSource,
+    *,
+    name: str,
+    rates: str | NodeRates = "original",
+    behavior: TrackBehaviorPolicy | None = None,
+    follower: FollowerParameters | None = None,
+) -> DBWStackAgent:
+    """The stack for a ``TrackLoop-v0`` env: its track, car, speed limit, loop period and
+    front bumper offset; ``follower`` defaults to
+    :data:`~sdc_gym.stack.track.follower.CONTINUOUS_FOLLOWER`."""
+    unwrapped = env.unwrapped
+    loop = PHYSICS_DT * int(getattr(unwrapped, "steps_per_action", 1))
+    return DBWStackAgent(
+        name, unwrapped.track, unwrapped.params, light_source,
+        speed_limit_mps=unwrapped.speed_limit, loop_period_s=loop, rates=rates,
+        behavior=behavior,
+        follower_params=CONTINUOUS_FOLLOWER if follower is None else follower,
+        front_offset_m=float(getattr(unwrapped, "front_offset", DEFAULT_FRONT_OFFSET_M)))

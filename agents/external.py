@@ -1,0 +1,208 @@
+"""External planners as agents: ``evaluate.py --agent "external:./path_planning"``.
+
+A planner written for the original highway simulator (a uWebSockets server on port 4567,
+usually C++) drives ``sdc_gym/HighwayLoop-v0`` unchanged through the original's wire
+protocol (:mod:`sdc_gym.bridge`). :class:`ExternalPlannerAgent` is an ordinary agent for
+:func:`agents.evaluation.run_episode`: at its first action it exports the map (if asked),
+starts the planner command in its working directory, connects; every action is one
+exchange (the step's ``info["telemetry"]`` out, the path back); at the end of the episode
+the planner is stopped with its whole process group. Its faults end the episode with
+their reason (``termination_reason`` ``planner_died``, ``reply_timeout``,
+``malformed_reply``, ``empty_path``, ``non_finite_point``, ...) and a message saying what
+happened (``abort_message``); the metrics up to that moment are kept.
+
+Options (keyword arguments of :func:`external_agent`, ``evaluate.py`` flags):
+``cwd`` (``--planner-cwd``), ``port`` (``--planner-port``), ``map_export``
+(``--planner-map``), ``startup_timeout`` / ``reply_timeout`` (``--planner-startup`` /
+``--planner-timeout``), ``log_path`` (evaluate puts it in the run folder:
+``planner_logs/<agent>_seed<seed>.log``), ``manual_probe``. The reply latency is the env's:
+``--reply-latency N`` sets ``steps_per_action = latency_steps = N`` frames.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import hashlib
+import re
+from pathlib import Path
+from typing import Any, Final
+
+import gymnasium as gym
+import numpy as np
+from numpy.typing import NDArray
+
+from agents.evaluation import EpisodeAborted
+from sdc_gym.bridge import (
+    BridgeError,
+    InvalidPath,
+    PlannerOptions,
+    PlannerSession,
+    lockstep_config,
+)
+from sdc_gym.envs import HighwayLoopEnv
+
+EXTERNAL_KIND: Final = "external"
+LOG_FOLDER: Final = "planner_logs"
+"""Folder of the run's output where each episode's planner output is captured."""
+
+
+class ExternalPlannerAgent:
+    """An external planner process driven through the original's protocol; see the module
+    docstring. One instance per episode (``run_episode`` builds one per episode)."""
+
+    wants_info = True  # act() needs the step's info["telemetry"]
+
+    def __init__(self, command: str, env: gym.Env, options: PlannerOptions | None = None,
+                 *, name: str | None = None) -> None:
+        unwrapped = env.unwrapped
+        if not isinstance(unwrapped, HighwayLoopEnv):
+            raise ValueError(f"external planners drive sdc_gym/HighwayLoop-v0 (path level), "
+                             f"not {type(unwrapped).__name__}")
+        if not unwrapped.config["telemetry_info"]:
+            raise ValueError("external planners need the env's telemetry: set the config key "
+                             "telemetry_info: true")
+        self.name = name or f"{EXTERNAL_KIND}:{command}"
+        self.command = command
+        self.options = options or PlannerOptions()
+        self._road = unwrapped.road
+        self._max_points = unwrapped.path_points
+        self._low = env.action_space.low[0].astype(np.float64)
+        self._high = env.action_space.high[0].astype(np.float64)
+        self.session: PlannerSession | None = None
+
+    def reset(self) -> None:
+        """Stop the previous episode's planner; the next action starts a fresh one."""
+        self.close()
+        self.session = None
+
+    def act(self, observation: Any, info: dict[str, Any]) -> NDArray[np.float64]:
+        """The planner's reply to this step's telemetry (raises
+        :class:`~agents.evaluation.EpisodeAborted` on a fault)."""
+        try:
+            if self.session is None:
+                self.session = PlannerSession(self.command, self.options, road=self._road)
+                self.session.start()
+            path = self.session.exchange(info["telemetry"])
+            self._check(path)
+        except BridgeError as error:
+            raise EpisodeAborted(error.reason, str(error)) from error
+        return path
+
+    def _check(self, path: NDArray[np.float64]) -> None:
+        """Faults the env would raise as ValueError, named as the planner's."""
+        if len(path) > self._max_points:
+            raise InvalidPath(f"the planner sent {len(path)} points; the env takes at most "
+                              f"path_points = {self._max_points} (raise the env config key "
+                              "path_points)")
+        outside = ((path < self._low) | (path > self._high)).any(axis=1)
+        if outside.any():
+            index = int(np.flatnonzero(outside)[0])
+            raise InvalidPath(
+                f"path point {index} {path[index].tolist()} lies outside the map's area "
+                f"(x {self._low[0]:.0f}..{self._high[0]:.0f}, y {self._low[1]:.0f}.."
+                f"{self._high[1]:.0f} m): does the planner load this env's map? (export it "
+                "with --planner-map)")
+
+    def episode_extras(self) -> dict[str, Any]:
+        """Figures of the exchange for the episode's result."""
+        session = self.session
+        if session is None:
+            return {"planner_exchanges": 0}
+        stats = session.stats
+        return {"planner_exchanges": stats.exchanges,
+                "planner_wait_time": stats.wait_time,
+                "planner_pid": session.process.pid,
+                "planner_log": str(session.process.log_path)}
+
+    def close(self) -> None:
+        """Stop the planner process group and close the connection (safe to repeat)."""
+        if self.session is not None:
+            self.session.close()
+
+
+_OPTION_NAMES = tuple(field.name for field in dataclasses.fields(PlannerOptions))
+
+
+def external_agent(command: str, env: gym.Env, **options: Any) -> ExternalPlannerAgent:
+    """The factory of agent specs ``external:COMMAND``; ``options`` are
+    :class:`~sdc_gym.bridge.PlannerOptions` fields."""
+    unknown = sorted(set(options) - set(_OPTION_NAMES))
+    if unknown:
+        raise ValueError(f"unknown external planner option(s) {unknown}; valid: "
+                         f"{', '.join(_OPTION_NAMES)}")
+    return ExternalPlannerAgent(command, env, PlannerOptions(**options))
+
+
+# ---------------------------------------------------------------- evaluate.py's options
+def add_external_arguments(parser: argparse.ArgumentParser) -> None:
+    """The command-line options of external planners (``--agent external:COMMAND``)."""
+    group = parser.add_argument_group(
+        "external planners (--agent 'external:COMMAND', a planner for the original "
+        "simulator; {port} in COMMAND gets a free port)")
+    group.add_argument("--planner-cwd", default=None, metavar="DIR",
+                       help="the planner's working directory (default: the current one)")
+    group.add_argument("--planner-port", type=int, default=None, metavar="PORT",
+                       help="the port it listens on (default: a free one for a {port} "
+                            "argument, else 4567 like the original)")
+    group.add_argument("--planner-map", default=None, metavar="PATH",
+                       help="export the env's map in the original format to PATH, relative "
+                            "to the working directory, before each episode (e.g. "
+                            "../data/highway_map.csv; a different file there is kept as .orig)")
+    group.add_argument("--reply-latency", type=int, default=None, metavar="FRAMES",
+                       help="the planner's reply takes effect FRAMES physics frames (0.02 s) "
+                            "after its telemetry, which goes out every FRAMES frames (the "
+                            "original's lock-step; sets steps_per_action and latency_steps "
+                            "for every agent; default: the config's, 3)")
+    group.add_argument("--planner-timeout", type=float, default=5.0, metavar="S",
+                       help="wall seconds to wait for each reply (default 5)")
+    group.add_argument("--planner-startup", type=float, default=10.0, metavar="S",
+                       help="wall seconds to wait for the planner to listen (default 10)")
+
+
+def check_external_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    """Reject bad external planner options (exits through ``parser.error``)."""
+    if args.reply_latency is not None and args.reply_latency < 1:
+        parser.error(f"--reply-latency must be >= 1 frame, got {args.reply_latency}")
+    for flag in ("planner_timeout", "planner_startup"):
+        if not getattr(args, flag) > 0:
+            parser.error(f"--{flag.replace('_', '-')} must be > 0 s, got {getattr(args, flag)}")
+    if args.planner_port is not None and not 0 < args.planner_port < 65536:
+        parser.error(f"--planner-port must be in 1..65535, got {args.planner_port}")
+    if args.planner_cwd is not None and not Path(args.planner_cwd).expanduser().is_dir():
+        parser.error(f"--planner-cwd {args.planner_cwd}: no such folder")
+
+
+def is_external(agent: str) -> bool:
+    return agent.startswith(EXTERNAL_KIND + ":")
+
+
+def apply_reply_latency(args: argparse.Namespace, env_config: dict[str, Any]) -> None:
+    """``--reply-latency N`` into the env config (the original's lock-step)."""
+    if args.reply_latency is not None:
+        env_config.update(lockstep_config(args.reply_latency))
+
+
+def external_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
+    """The ``external`` options of one episode: the flags, and its log in the run folder."""
+    # A readable file name from the command's words without their folders, made unique
+    # by the spec's hash (commands can be long and differ only in their folders).
+    words = " ".join(Path(word).name or word for word in agent.partition(":")[2].split())
+    slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", words).strip("_.")[:60]
+    slug = f"{slug}_{hashlib.sha1(agent.encode()).hexdigest()[:8]}"
+    return {
+        "cwd": str(Path(args.planner_cwd).expanduser()) if args.planner_cwd else None,
+        "port": args.planner_port,
+        "map_export": args.planner_map,
+        "startup_timeout": args.planner_startup,
+        "reply_timeout": args.planner_timeout,
+        "log_path": str(args.output / LOG_FOLDER / f"{slug}_seed{seed}.log"),
+    }
+
+
+def fixed_port_workers(args: argparse.Namespace, agents: list[str], workers: int) -> int:
+    """Workers for the run: 1 when external planners share a fixed port (they would
+    collide), else ``workers``."""
+    fixed = [agent for agent in agents if is_external(agent)
+             and ("{port}" not in agent or args.planner_port is not None)]
+    return 1 if fixed and workers > 1 else workers

@@ -1,0 +1,165 @@
+"""Trained stable-baselines3 policies as agents on the path-level envs.
+
+``evaluate.py --agents ppo:agents/highway/policies/ppo_highway.zip fsm_bold`` compares a
+policy trained on ``sdc_gym/HighwayLoopBehavior-v0`` with the rule-based planner on the
+same ``sdc_gym/HighwayLoop-v0`` seeds: the policy takes the place of the FSM in the same
+layered agent (shared perception and motion of :mod:`sdc_gym.stack.highway`), through the
+same :class:`~sdc_gym.stack.highway.decisions.DecisionExecutor` and features it was trained
+with. Track policies (``sdc_gym/TrackLoopBehavior-v0``) drive ``sdc_gym/TrackLoop-v0``
+inside the drive-by-wire stack the same way.
+
+The behavior env's settings the policy was trained with (decision period, shield, action
+type) are read from the YAML next to the model: ``<model>.yaml`` or the run folder's
+``config.yaml`` (train.py writes it); without one the env's defaults apply.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import yaml
+
+from sdc_gym.config import resolve_config
+from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
+from sdc_gym.envs.track_behavior import TrackLoopBehaviorEnv
+from sdc_gym.stack.highway.behavior import BehaviorDecision
+from sdc_gym.stack.highway.decisions import DecisionExecutor, HighwayDecision
+from sdc_gym.stack.highway.features import BehaviorFeatures
+from sdc_gym.stack.highway.layered import LayeredHighwayAgent
+from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
+from sdc_gym.stack.highway.perception import Perception, PerceptionParameters
+from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
+from sdc_gym.stack.highway.world_model import WorldModel
+from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
+from sdc_gym.stack.track.decisions import TrackDecisionBehavior, TrackFeatures
+from sdc_gym.stack.track.detector import GroundTruthLightSource
+
+POLICY_KINDS = ("ppo", "dqn", "sac", "a2c")
+"""Agent spec prefixes: ``<kind>:<path to model.zip>``."""
+
+
+def load_model(kind: str, path: str | Path) -> Any:
+    """The SB3 model of algorithm ``kind`` saved at ``path`` (on the CPU)."""
+    import stable_baselines3
+
+    if kind not in POLICY_KINDS:
+        raise ValueError(f"unknown policy kind {kind!r}; valid: {list(POLICY_KINDS)}")
+    model_path = Path(path)
+    if not model_path.is_file():
+        raise ValueError(f"{kind}: no model file at {model_path}")
+    return getattr(stable_baselines3, kind.upper()).load(model_path, device="cpu")
+
+
+def training_config(path: str | Path) -> tuple[str | None, dict[str, Any]]:
+    """The env id and behavior-env config a model was trained with (None, {}: unknown)."""
+    model_path = Path(path)
+    for candidate in (model_path.with_suffix(".yaml"), model_path.parent / "config.yaml"):
+        if candidate.is_file():
+            data = yaml.safe_load(candidate.read_text(encoding="utf-8")) or {}
+            return data.get("env"), dict(data.get("config") or {})
+    return None, {}
+
+
+class PolicyBehavior:
+    """A trained highway policy as a :class:`~sdc_gym.stack.highway.behavior.BehaviorPolicy`.
+
+    Decides every ``cycles_per_decision`` planning cycles (the trained decision period
+    over the env's cycle) and holds the motion instruction in between, as the behavior
+    env does; ``predict`` is deterministic.
+    """
+
+    def __init__(self, model: Any, features: BehaviorFeatures, executor: DecisionExecutor,
+                 cycles_per_decision: int, action: str = "discrete") -> None:
+        if model.observation_space.shape != features.space.shape:
+            raise ValueError(f"the policy expects observations of shape "
+                             f"{model.observation_space.shape}, this road gives "
+                             f"{features.space.shape}")
+        self.model = model
+        self.features = features
+        self.executor = executor
+        self.cycles_per_decision = cycles_per_decision
+        self.action = action
+        self.reset()
+
+    def reset(self) -> None:
+        self.executor.reset()
+        self._cycle = 0
+        self._plan: BehaviorDecision | None = None
+
+    def decide(self, world: WorldModel) -> BehaviorDecision:
+        if self._plan is None or self._cycle % self.cycles_per_decision == 0:
+            observation = self.features.encode(world, self.executor)
+            action, _ = self.model.predict(observation, deterministic=True)
+            decision = (HighwayDecision.from_index(int(np.asarray(action).reshape(())))
+                        if self.action == "discrete"
+                        else HighwayDecision.from_vector(action, self.executor.cruise_speed_mps))
+            self._plan = self.executor.execute(world, decision)
+        elif self._plan.replan:  # a replan is an instruction for one cycle only
+            self._plan = BehaviorDecision(self._plan.target_lane, self._plan.target_speed,
+                                          self._plan.acceleration, False, True,
+                                          self._plan.mode)
+        self._cycle += 1
+        return self._plan
+
+
+def _cycles_per_decision(decision_frames: int, env_frames: int) -> int:
+    if decision_frames % env_frames:
+        valid = [f for f in range(1, decision_frames + 1) if decision_frames % f == 0]
+        raise ValueError(f"the policy decides every {decision_frames} frames, which is not a "
+                         f"multiple of the env's steps_per_action {env_frames}; use one of "
+                         f"{valid}")
+    return decision_frames // env_frames
+
+
+def highway_policy_agent(env: gym.Env, kind: str, path: str | Path,
+                         name: str | None = None) -> LayeredHighwayAgent:
+    """The trained highway policy at ``path`` driving ``HighwayLoop-v0`` (see module doc)."""
+    unwrapped = env.unwrapped
+    _, trained = training_config(path)
+    cfg = resolve_config(HighwayLoopBehaviorEnv.DEFAULT_CONFIG, trained,
+                         owner="HighwayLoopBehavior-v0 (policy's training config)")
+    road = unwrapped.road
+    perception = Perception(road, PerceptionParameters(tracking=bool(cfg["kalman_tracking"])))
+    shield = SafetyShield(ShieldParameters(**cfg["shield"])) if cfg["safety_shield"] else None
+    executor = DecisionExecutor(shield, slow_step_mps=float(cfg["slow_step_mps"]))
+    behavior = PolicyBehavior(
+        load_model(kind, path), BehaviorFeatures(road.lane_count,
+                                                 perception.params.sensing_range),
+        executor, _cycles_per_decision(int(cfg["decision_frames"]),
+                                       int(unwrapped.steps_per_action)), cfg["action"])
+    return LayeredHighwayAgent(name or f"{kind}:{Path(path).stem}", road, behavior, perception,
+                               SeedMotionPlanner(road, MotionParameters.for_env(unwrapped)))
+
+
+def track_policy_agent(env: gym.Env, kind: str, path: str | Path,
+                       name: str | None = None) -> DBWStackAgent:
+    """The trained track policy at ``path`` inside the DBW stack on ``TrackLoop-v0``
+    (ground-truth light states: the env config needs ``observe_light_states: True``)."""
+    unwrapped = env.unwrapped
+    _, trained = training_config(path)
+    cfg = resolve_config(TrackLoopBehaviorEnv.DEFAULT_CONFIG, trained,
+                         owner="TrackLoopBehavior-v0 (policy's training config)")
+    if unwrapped.track.light_count and "light_states" not in unwrapped.observation_space.spaces:
+        raise ValueError("a track policy needs the env config {'observe_light_states': True}")
+    model = load_model(kind, path)
+
+    def choose(observation: np.ndarray) -> Any:
+        action, _ = model.predict(observation, deterministic=True)
+        return action
+
+    continuous = cfg["action"] == "continuous"
+    behavior = TrackDecisionBehavior(TrackFeatures(abs(unwrapped.params.decel_limit)),
+                                     continuous=continuous, chooser=choose,
+                                     decision_period_s=float(cfg["decision_period_s"]))
+    return dbw_stack_for_env(env, GroundTruthLightSource(), behavior=behavior,
+                             name=name or f"{kind}:{Path(path).stem}")
+
+
+def policy_agent(env: gym.Env, kind: str, path: str | Path) -> Any:
+    """A policy agent for ``env``: the highway or the track kind, by the env."""
+    if hasattr(env.unwrapped, "track"):
+        return track_policy_agent(env, kind, path)
+    return highway_policy_agent(env, kind, path)

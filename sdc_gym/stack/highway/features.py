@@ -1,0 +1,124 @@
+"""The behavior-level observation: a world model as a flat, normalised float32 vector.
+
+One vector per decision, the same for the behavior-level env and for a trained policy
+driving the path-level env. With ``n`` lanes (3 on the default highway) the entries are,
+in order (:meth:`BehaviorFeatures.names` gives each one's name):
+
+=====================  =====  ==================================================  =========
+entry                  count  meaning                                             range
+=====================  =====  ==================================================  =========
+speed                  1      ego speed / cruise speed (49.83 mph)                [0, 1.2]
+ego_lane               n      one-hot lane holding the ego's d                    {0, 1}
+target_lane            n      one-hot lane the ego is driving to                  {0, 1}
+offset                 1      (ego d - target lane centre) / lane width           [-3, 3]
+changing               1      1 while a lane change is under way                  {0, 1}
+since_change           1      time since the last lane change / 10 s, clipped     [0, 1]
+curvature              1      ``radius_scale / road radius`` ahead, clipped       [0, 1]
+allowed_left/right     2      1 when that lane move would start a change now      {0, 1}
+per lane (n times):    4n
+  ahead_gap                   gap to the nearest car ahead / sensing range        [0, 1]
+  ahead_speed                 (its speed - ego speed) / cruise speed (0: nobody)  [-2, 2]
+  behind_gap                  gap to the nearest car behind / sensing range       [0, 1]
+  behind_speed                (its speed - ego speed) / cruise speed (0: nobody)  [-2, 2]
+=====================  =====  ==================================================  =========
+
+Gaps are centre to centre along the road (the world model's); an empty lane reads as a gap
+of 1 (the sensing range) and a relative speed of 0. ``curvature`` is 1 at the seed's
+no-lane-change radius (500 m) and tighter, 0 on a straight. ``allowed_*`` come from the
+executor (its shield's lane-change rule, or just "a lane exists" without a shield): they
+let a policy see what the shield would refuse.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from gymnasium import spaces
+from numpy.typing import NDArray
+
+from sdc_gym.stack.highway.decisions import CRUISE_SPEED_MPS, DecisionExecutor
+from sdc_gym.stack.highway.world_model import WorldModel
+
+SINCE_CHANGE_SCALE_S = 10.0
+RADIUS_SCALE_M = 500.0
+OFFSET_LIMIT = 3.0
+REL_SPEED_LIMIT = 2.0
+SPEED_LIMIT = 1.2
+
+
+class BehaviorFeatures:
+    """Encodes world models for ``lane_count`` lanes (see the module docstring).
+
+    Args:
+        lane_count: lanes of the road.
+        sensing_range_m: perception's range (gaps are divided by it).
+    """
+
+    def __init__(self, lane_count: int, sensing_range_m: float = 200.0) -> None:
+        if lane_count < 1 or not sensing_range_m > 0.0:
+            raise ValueError("lane_count >= 1 and sensing_range_m > 0")
+        self.lane_count = lane_count
+        self.sensing_range_m = sensing_range_m
+        self.size = 7 + 6 * lane_count
+        low = np.zeros(self.size, dtype=np.float32)
+        high = np.ones(self.size, dtype=np.float32)
+        n = lane_count
+        high[0] = SPEED_LIMIT
+        low[1 + 2 * n], high[1 + 2 * n] = -OFFSET_LIMIT, OFFSET_LIMIT
+        per_lane = 7 + 2 * n
+        for lane in range(n):
+            for column in (1, 3):  # relative speeds
+                low[per_lane + 4 * lane + column] = -REL_SPEED_LIMIT
+                high[per_lane + 4 * lane + column] = REL_SPEED_LIMIT
+        self.space = spaces.Box(low, high, dtype=np.float32)
+
+    def names(self) -> list[str]:
+        n = range(self.lane_count)
+        return ["speed", *(f"ego_lane_{i}" for i in n), *(f"target_lane_{i}" for i in n),
+                "offset", "changing", "since_change", "curvature", "allowed_left",
+                "allowed_right",
+                *(f"lane_{i}_{name}" for i in n
+                  for name in ("ahead_gap", "ahead_speed", "behind_gap", "behind_speed"))]
+
+    def encode(self, world: WorldModel, executor: DecisionExecutor) -> NDArray[np.float32]:
+        """The observation for ``world`` with the executor's lane-change state."""
+        if world.lane_count != self.lane_count:
+            raise ValueError(f"world has {world.lane_count} lanes, features expect "
+                             f"{self.lane_count}")
+        v = world.ego_speed
+        n = self.lane_count
+        target = executor.target_lane if executor.target_lane >= 0 else world.ego_lane
+        values = [0.0] * self.size
+        values[0] = min(v / CRUISE_SPEED_MPS, SPEED_LIMIT)
+        values[1 + world.ego_lane] = 1.0
+        values[1 + n + target] = 1.0
+        offset = (world.ego_d - world.lane_center(target)) / world.lane_width
+        values[1 + 2 * n] = min(max(offset, -OFFSET_LIMIT), OFFSET_LIMIT)
+        values[2 + 2 * n] = float(executor.changing)
+        values[3 + 2 * n] = min(executor.time_since_lane_change(world.time)
+                                / SINCE_CHANGE_SCALE_S, 1.0)
+        radius = world.road_radius
+        values[4 + 2 * n] = 0.0 if math.isinf(radius) else min(RADIUS_SCALE_M / radius, 1.0)
+        left, right = executor.allowed_moves(world)
+        values[5 + 2 * n], values[6 + 2 * n] = float(left), float(right)
+        rng = self.sensing_range_m
+        base = 7 + 2 * n
+        for lane, view in enumerate(world.lanes):
+            i = base + 4 * lane
+            if view.has_ahead:
+                values[i] = min(view.ahead_gap / rng, 1.0)
+                values[i + 1] = _relative(view.ahead_speed, v)
+            else:
+                values[i] = 1.0
+            if view.has_behind:
+                values[i + 2] = min(view.behind_gap / rng, 1.0)
+                values[i + 3] = _relative(view.behind_speed, v)
+            else:
+                values[i + 2] = 1.0
+        return np.asarray(values, dtype=np.float32)
+
+
+def _relative(speed: float, ego_speed: float) -> float:
+    rel = (speed - ego_speed) / CRUISE_SPEED_MPS
+    return min(max(rel, -REL_SPEED_LIMIT), REL_SPEED_LIMIT)

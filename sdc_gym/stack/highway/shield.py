@@ -1,0 +1,155 @@
+"""A safety shield between a learned behavior layer and the motion layer.
+
+A behavior policy proposes a lane and a speed; the shield disposes, with the seed planner's
+own safety rules (``seeds/004``), so that a policy in training explores lap time and lane
+choice rather than rediscovering how not to hit a car in front (shielded RL: Alshiekh et
+al., "Safe Reinforcement Learning via Shielding", AAAI 2018). Turn it off in the
+behavior-level env (``safety_shield: False``) to learn everything from the rewards.
+
+Rules (gaps centre to centre, as the world model gives them):
+
+* **Following.** Behind a lead car (the nearest car ahead in the ego lane, and while
+  changing lanes also in the target lane) at gap ``g`` with speed ``u``, the speed is
+  capped by the seed's braking curve ``p(g) / 100 x u`` inside ``brake_range_m`` (30 m, the
+  seed's active range), and beyond it by ``p(range) x u + approach_gain_per_s x (g -
+  range)``, which meets the curve at its edge (the FSM's following law). Below
+  ``hard_braking_fraction`` of the lead's speed the path is replanned and the car brakes at
+  the seed's maximum rate.
+* **Lane changes** start only when no change is in progress, the road's circumradius ahead
+  exceeds ``min_change_radius_m`` (the seed's "lower visibility in bends" rule), the target
+  lane's car behind is beyond the seed's safety gap ``max(11, 3 s x (v_behind - v) + 11)``,
+  its car ahead is beyond ``min_ahead_m + 3 s x (v - v_ahead)``, and (merging towards a
+  lane with another lane beyond it) no car of that far lane is within
+  ``far_lane_watch_m`` either way: traffic merges into lanes clear by +-20 m, so both could
+  move into the same gap at once.
+* **Abort.** While the ego is still within ``abort_window_m`` of the lane it is leaving, a
+  car that appears in the target lane inside ``abort_gap_m`` ahead, or behind closer than
+  its safety gap, sends it back.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from sdc_gym.stack.highway.behavior import MAX_BRAKING, NORMAL_ACCELERATION
+from sdc_gym.stack.highway.world_model import LaneView, WorldModel
+
+
+@dataclass(frozen=True)
+class ShieldParameters:
+    """The shield's constants (the seed's values; Bold's active profile for the ranges)."""
+
+    brake_range_m: float = 30.0
+    approach_gain_per_s: float = 1.0
+    hard_braking_fraction: float = 0.8
+    brake_curve_gain_pct_per_m: float = 13.67303
+    brake_curve_decay_per_m: float = 0.08660915
+    brake_curve_offset_pct: float = 55.76378
+    safety_gap_min_m: float = 11.0
+    safety_horizon_s: float = 3.0
+    min_ahead_m: float = 20.0
+    min_change_radius_m: float = 500.0
+    far_lane_watch_m: float = 20.0
+    abort_gap_m: float = 8.0
+    abort_window_m: float = 2.0
+
+    def __post_init__(self) -> None:
+        for name in ("brake_range_m", "brake_curve_decay_per_m", "safety_horizon_s"):
+            if not getattr(self, name) > 0.0:
+                raise ValueError(f"shield {name} must be > 0, got {getattr(self, name)!r}")
+        for name in ("approach_gain_per_s", "safety_gap_min_m", "min_ahead_m",
+                     "min_change_radius_m", "far_lane_watch_m", "abort_gap_m",
+                     "abort_window_m"):
+            if not getattr(self, name) >= 0.0:
+                raise ValueError(f"shield {name} must be >= 0, got {getattr(self, name)!r}")
+        if not 0.0 <= self.hard_braking_fraction <= 1.0:
+            raise ValueError("shield hard_braking_fraction must be in [0, 1]")
+
+
+@dataclass(frozen=True)
+class SpeedLimit:
+    """What following allows: at most ``speed`` m/s; ``hard`` asks for a replan and the
+    maximum braking rate (``acceleration``)."""
+
+    speed: float
+    acceleration: float = NORMAL_ACCELERATION
+    hard: bool = False
+
+
+class SafetyShield:
+    """The rules of the module docstring, as pure functions of a world model."""
+
+    def __init__(self, params: ShieldParameters | None = None) -> None:
+        self.params = params or ShieldParameters()
+        p = self.params
+        self._curve_scale = p.brake_curve_gain_pct_per_m / p.brake_curve_decay_per_m
+
+    def braking_fraction(self, gap_m: float) -> float:
+        """p(gap) / 100: the fraction of the lead's speed to drive at, ``gap_m`` behind it."""
+        p = self.params
+        pct = self._curve_scale * (1.0 - math.exp(-p.brake_curve_decay_per_m * gap_m))
+        return min(max(pct - p.brake_curve_offset_pct, 0.0), 100.0) * 0.01
+
+    def lead(self, world: WorldModel, target_lane: int) -> tuple[float, float]:
+        """Gap and speed of the nearest car ahead in the lanes from the ego's to the target."""
+        lo, hi = sorted((world.ego_lane, target_lane))
+        gap, speed = math.inf, 0.0
+        for view in world.lanes[lo:hi + 1]:
+            if view.ahead_gap < gap:
+                gap, speed = view.ahead_gap, view.ahead_speed
+        return gap, speed
+
+    def speed_limit(self, world: WorldModel, target_lane: int) -> SpeedLimit:
+        """The following cap behind the lead (``inf`` speed when there is none)."""
+        p = self.params
+        gap, u = self.lead(world, target_lane)
+        if gap == math.inf:
+            return SpeedLimit(math.inf)
+        if gap >= p.brake_range_m:
+            edge = self.braking_fraction(p.brake_range_m) * u
+            return SpeedLimit(edge + p.approach_gain_per_s * (gap - p.brake_range_m))
+        fraction = self.braking_fraction(gap)
+        if fraction < p.hard_braking_fraction:
+            return SpeedLimit(fraction * u, MAX_BRAKING, hard=True)
+        return SpeedLimit(fraction * u)
+
+    def safe_behind(self, view: LaneView, ego_speed: float) -> bool:
+        """The lane's car behind is beyond the seed's safety gap."""
+        p = self.params
+        need = max(p.safety_gap_min_m,
+                   p.safety_horizon_s * (view.behind_speed - ego_speed) + p.safety_gap_min_m)
+        return view.behind_gap > need
+
+    def safe_ahead(self, view: LaneView, ego_speed: float) -> bool:
+        """The lane's car ahead leaves room for the change at the current speeds."""
+        p = self.params
+        need = p.min_ahead_m + p.safety_horizon_s * max(ego_speed - view.ahead_speed, 0.0)
+        return view.ahead_gap > need
+
+    def lane_change_allowed(self, world: WorldModel, target_lane: int) -> bool:
+        """Whether a change from the ego lane to the adjacent ``target_lane`` may start now."""
+        p = self.params
+        ego = world.ego_lane
+        if abs(target_lane - ego) != 1 or not 0 <= target_lane < world.lane_count:
+            return False
+        if world.road_radius <= p.min_change_radius_m:
+            return False
+        view = world.lanes[target_lane]
+        v = world.ego_speed
+        if not (self.safe_behind(view, v) and self.safe_ahead(view, v)):
+            return False
+        far = 2 * target_lane - ego
+        if 0 <= far < world.lane_count:
+            beyond = world.lanes[far]
+            if min(beyond.ahead_gap, beyond.behind_gap) < p.far_lane_watch_m:
+                return False
+        return True
+
+    def must_abort(self, world: WorldModel, origin_lane: int, target_lane: int) -> bool:
+        """A lane change under way should go back: see "Abort" in the module docstring."""
+        p = self.params
+        if abs(world.ego_d - world.lane_center(origin_lane)) > p.abort_window_m:
+            return False
+        view = world.lanes[target_lane]
+        return view.ahead_gap < p.abort_gap_m or not self.safe_behind(view, world.ego_speed)

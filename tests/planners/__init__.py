@@ -1,0 +1,1 @@
+"""Planner programs for the tests of the external-planner bridge (see protocol_planner.py)."""

@@ -1,0 +1,242 @@
+"""External planners end to end: a planner process speaking the original's protocol drives
+the highway through the socket exactly like its in-process twin, and every fault ends the
+episode with its reason, in bounded time, leaving no process behind."""
+
+from __future__ import annotations
+
+import json
+import shlex
+import socket
+import sys
+import time
+from pathlib import Path
+
+import gymnasium as gym
+import pytest
+
+import evaluate
+from agents.evaluation import EpisodeSpec, run_episode
+from agents.registry import AGENTS, make_agent, parse_agent_spec
+from sdc_gym.bridge import (
+    FAULT_REASONS,
+    PlannerOptions,
+    PlannerSession,
+    decode_reply,
+    encode_telemetry,
+    export_highway_map,
+    lockstep_config,
+)
+from tests.planners.protocol_planner import Planner, TelemetryLaneKeeper
+
+PLANNER = Path(__file__).resolve().parent / "planners" / "protocol_planner.py"
+HIGHWAY = "sdc_gym/HighwayLoop-v0"
+OVAL = {"map": "oval", "traffic": {"car_count": 8}, "max_duration": 200.0}
+# The summary fields a run reproduces exactly (not wall time, not the agent's name).
+SUMMARY_KEYS = ("lap_times", "laps", "distance", "time", "incidents", "incident_log",
+                "max_acceleration", "max_jerk", "max_raw_acceleration", "max_speed",
+                "termination_reason", "distance_without_incident")
+
+
+def planner_command(*arguments: str) -> str:
+    return shlex.join([sys.executable, str(PLANNER), "--port", "{port}", *arguments])
+
+
+def external(*arguments: str) -> str:
+    return "external:" + planner_command(*arguments)
+
+
+def process_gone(pid: int, wait_s: float = 5.0) -> bool:
+    """No such process, or only its zombie, within ``wait_s`` (a killed process exits
+    when the kernel next schedules it, a moment after the signal)."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+        except FileNotFoundError:
+            return True
+        if state in ("Z", "X"):
+            return True
+        if time.monotonic() > deadline:
+            return False
+        time.sleep(0.01)
+
+
+def run(agent: str, config: dict, seed: int = 0, **options) -> dict:
+    if "cwd" in options:  # the planner's output beside it, not in the system's temp folder
+        options.setdefault("log_path", str(Path(options["cwd"]) / "planner.log"))
+    spec = EpisodeSpec(agent, HIGHWAY, seed, config, trace_points=0,
+                       agent_options={"external": options})
+    return run_episode(spec)
+
+
+def test_a_lap_through_the_socket_is_the_in_process_planners_lap(tmp_path):
+    """The planner at 55 mph on the oval: the same path bit for bit, so the same incidents
+    (speed) at the same places, through the socket as when called in-process on the same
+    telemetry text."""
+    export_highway_map("oval", tmp_path)
+    config = dict(OVAL, **lockstep_config(3))
+    via_socket = run(external("--target-mph", "55"), config, seed=2, cwd=str(tmp_path),
+                     log_path=str(tmp_path / "planner.log"))
+
+    env = gym.make(HIGHWAY, config=config)
+    planner = Planner(TelemetryLaneKeeper(str(tmp_path / "highway_map.csv"), 55.0), "none", 0)
+    _, info = env.reset(seed=2)
+    steps = 0
+    while True:
+        reply = planner.on_message(encode_telemetry(info["telemetry"]))
+        _, _, terminated, truncated, info = env.step(decode_reply(reply))
+        steps += 1
+        if terminated or truncated:
+            break
+    in_process = info["summary"]
+    assert via_socket["termination_reason"] == "laps_completed"
+    assert in_process["incidents"]["speed"] == 2  # there is something to compare
+    assert {key: via_socket[key] for key in SUMMARY_KEYS} == {
+        key: in_process[key] for key in SUMMARY_KEYS}
+    assert via_socket["planner_exchanges"] == via_socket["env_steps"] == steps
+    reports = via_socket["incident_reports"]  # one per incident, with its history
+    assert [report["time"] for report in reports] == [
+        entry["time"] for entry in in_process["incident_log"]]
+    for report in reports:  # the history ends with the step the incident happened in
+        assert report["time"] - 0.06 < report["history"]["time"][-1] >= report["time"]
+    assert process_gone(via_socket["planner_pid"])
+    assert "Listening to port" in (tmp_path / "planner.log").read_text()
+
+
+def test_a_full_lap_of_the_highway_matches_the_in_process_lane_keeping_agent(tmp_path):
+    """One lap of the default 6.9 km highway (5 frames per exchange, ~3,500 exchanges):
+    the socket planner, reading our exported map and the 7-digit telemetry, has the
+    in-process agent's incidents and lap time."""
+    config = dict(lockstep_config(5), max_duration=1000.0)
+    in_process = run("lane_keeping", config, seed=0)
+    via_socket = run(external("--map", "data/highway_map.csv"), config, seed=0,
+                     cwd=str(tmp_path), map_export="data/highway_map.csv")
+    assert (tmp_path / "data" / "highway_map.csv").is_file()
+    for result in (in_process, via_socket):
+        assert result["termination_reason"] == "laps_completed" and result["laps"] == 1
+    assert via_socket["incidents"] == in_process["incidents"]
+    assert [entry["kind"] for entry in via_socket["incident_log"]] == [
+        entry["kind"] for entry in in_process["incident_log"]]
+    assert via_socket["lap_times"][0] == pytest.approx(in_process["lap_times"][0], abs=0.02)
+    assert via_socket["distance"] == pytest.approx(in_process["distance"], abs=0.05)
+    assert via_socket["planner_exchanges"] == in_process["env_steps"]
+    assert process_gone(via_socket["planner_pid"])
+
+
+STRAIGHT = ("--brain", "straight")
+
+
+@pytest.mark.parametrize("fault, reason, steps, message", [
+    ("die", "planner_died", 4, "exit code 3"),
+    ("malformed", "malformed_reply", 4, "not valid JSON"),
+    ("empty", "empty_path", 4, "empty path"),
+    ("nan", "non_finite_point", 4, "point 3 of the path is not finite"),
+    ("null", "non_finite_point", 4, "next_y[2] = null"),
+    ("manual", "manual_reply", 4, "manual"),
+    ("stall", "reply_timeout", 4, "no reply to telemetry message 5 within 0.5 s"),
+])
+def test_a_planner_fault_mid_episode_ends_it_with_its_reason(fault, reason, steps, message,
+                                                             tmp_path):
+    log = tmp_path / "planner.log"
+    result = run(external(*STRAIGHT, "--fault", fault, "--after", "4"), OVAL,
+                 cwd=str(tmp_path), reply_timeout=0.5, log_path=str(log))
+    assert result["termination_reason"] == reason
+    assert message in result["abort_message"] and str(log) in result["abort_message"]
+    assert result["env_steps"] == steps  # the good replies were driven
+    assert result["time"] == pytest.approx(steps * 3 * 0.02)  # the metrics up to the fault
+    assert result["is_success"] is False
+    assert process_gone(result["planner_pid"])
+
+
+def test_a_planner_that_never_listens_is_stopped_with_its_children(tmp_path):
+    log = tmp_path / "planner.log"
+    result = run(external("--fault", "never_listen"), OVAL, cwd=str(tmp_path),
+                 startup_timeout=1.0, log_path=str(log))
+    assert result["termination_reason"] == "planner_not_listening"
+    assert "within 1 s" in result["abort_message"] and result["env_steps"] == 0
+    child = int(log.read_text().split("child ")[1].split()[0])
+    assert process_gone(result["planner_pid"]) and process_gone(child)
+
+
+def test_a_planner_that_crashes_at_start_is_reported_with_its_output(tmp_path):
+    result = run(external("--fault", "crash_at_start"), OVAL, cwd=str(tmp_path))
+    assert result["termination_reason"] == "planner_died"
+    assert "exit code 2" in result["abort_message"]
+    assert "std::runtime_error" in result["abort_message"]  # the end of its output
+
+
+def test_a_missing_command_and_a_busy_port_are_named(tmp_path):
+    result = run("external:./path_planning", OVAL, cwd=str(tmp_path))
+    assert result["termination_reason"] == "planner_not_found"
+    assert "./path_planning" in result["abort_message"] and str(tmp_path) in result[
+        "abort_message"]
+    with socket.socket() as other:  # another program already on the planner's port
+        other.bind(("127.0.0.1", 0))
+        other.listen()
+        port = other.getsockname()[1]
+        result = run(external(*STRAIGHT), OVAL, port=port)
+    assert result["termination_reason"] == "port_in_use"
+    assert f"port {port} is already in use" in result["abort_message"]
+    assert {"planner_not_found", "port_in_use", "reply_timeout"} <= set(FAULT_REASONS)
+
+
+def test_the_manual_mode_probe_checks_the_protocol_before_driving(tmp_path):
+    env = gym.make(HIGHWAY, config=OVAL)
+    options = PlannerOptions(cwd=str(tmp_path), manual_probe=True,
+                             log_path=str(tmp_path / "planner.log"))
+    with PlannerSession(planner_command(*STRAIGHT), options) as planner:
+        _, info = env.reset(seed=0)
+        path = planner.exchange(info["telemetry"])
+        assert path.shape == (10, 2) and planner.stats.exchanges == 1
+        pid = planner.process.pid
+    assert process_gone(pid)
+
+
+def test_agent_specs_name_the_valid_agents_and_kinds():
+    assert parse_agent_spec("lane_keeping") == (None, "lane_keeping")
+    assert parse_agent_spec("external:./path_planning --fast") == (
+        "external", "./path_planning --fast")
+    for bad, message in [("nobody", "valid agents: "), ("ppo2:model.zip", "unknown agent kind"),
+                         ("external:", "needs an argument")]:
+        with pytest.raises(ValueError, match=message) as error:
+            parse_agent_spec(bad)
+        assert "external:ARGUMENT" in str(error.value) or "needs" in str(error.value)
+        assert "lane_keeping" in str(error.value) or "needs" in str(error.value)
+    env = gym.make(HIGHWAY, config=OVAL)
+    with pytest.raises(ValueError, match="valid: cwd, port"):
+        make_agent("external:./x", env, {"external": {"folder": "."}})
+    agent = make_agent("external:./x", env, {"external": {"cwd": "."}})
+    assert agent.name == "external:./x" and set(AGENTS) >= {"lane_keeping"}
+    track = gym.make("sdc_gym/TrackLoop-v0")
+    with pytest.raises(ValueError, match="HighwayLoop-v0"):
+        make_agent("external:./x", track)
+
+
+def test_evaluate_reports_external_planners_in_the_same_table(tmp_path, capsys):
+    """evaluate.py with a working and a dying external planner beside an in-process agent:
+    one table, the planners' output in the run folder, the fault printed."""
+    output = tmp_path / "run"
+    good = external()
+    dying = external(*STRAIGHT, "--fault", "die", "--after", "2")
+    result = evaluate.main(["--agents", "lane_keeping", good, dying, "--config",
+                            str(Path(evaluate.__file__).parent / "configs/highway_oval.yaml"),
+                            "--planner-cwd", str(tmp_path), "--planner-map",
+                            "highway_map.csv", "--reply-latency", "5", "--seeds", "2",
+                            "--no-plots", "--no-progress", "--workers", "2",
+                            "--output", str(output)])
+    rows = {row["agent"]: row for row in result["rows"]}
+    assert rows[good]["laps"] == rows["lane_keeping"]["laps"] == 1
+    assert rows[good]["incidents"] == rows["lane_keeping"]["incidents"]
+    assert rows[good]["mean_lap_time"] == pytest.approx(rows["lane_keeping"]["mean_lap_time"],
+                                                        abs=0.05)
+    assert rows[dying]["laps"] == 0
+    episodes = {episode["agent"]: episode
+                for episode in json.loads((output / "summary.json").read_text())["episodes"]}
+    assert episodes[dying]["termination_reason"] == "planner_died"
+    assert episodes["lane_keeping"]["env_steps"] == episodes[good]["planner_exchanges"]
+    logs = sorted(path.name for path in (output / "planner_logs").iterdir())
+    assert len(logs) == 2 and all(name.endswith("_seed2.log") for name in logs)
+    assert "dying after 2 replies" in (output / "planner_logs" / logs[0]).read_text() + (
+        output / "planner_logs" / logs[1]).read_text()
+    out = capsys.readouterr().out
+    assert "ended early, planner_died" in out and "external:" in out
