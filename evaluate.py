@@ -57,9 +57,13 @@ from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
-DEFAULT_AGENTS: tuple[str, ...] = ("fsm_conservative", "fsm_bold", "lane_keeping")
+COMMITTED_POLICY = "dqn:agents/highway/policies/dqn_highway.zip"
+"""The committed highway behavior policy (DQN on ``HighwayLoopBehavior-v0``; its training
+config and command are in ``dqn_highway.yaml`` beside it)."""
+DEFAULT_AGENTS: tuple[str, ...] = ("fsm_conservative", "fsm_bold", COMMITTED_POLICY,
+                                   "lane_keeping")
 """Agents compared on the highway when ``--agents`` is not given: the seed's planner in both
-styles and the lane-keeping baseline."""
+styles, the committed RL behavior policy in its place, and the lane-keeping baseline."""
 DEFAULT_TRACK_AGENTS: tuple[str, ...] = ("dbw_ground_truth", "dbw_cnn")
 """Agents compared on the track loop when ``--agents`` is not given: the drive-by-wire stack
 with the env's light states and with the committed CNN on the camera image."""

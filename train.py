@@ -1,9 +1,9 @@
 """Train a stable-baselines3 policy on an sdc-gym env; every run gets its own folder.
 
-    python train.py --config configs/train_highway_behavior.yaml --output runs/ppo_highway
+    python train.py --config configs/train_highway_behavior.yaml --output runs/dqn_highway
     python train.py --config configs/train_highway_behavior.yaml --algo dqn --output runs/dqn
     python train.py --config ... --output runs/x --hp learning_rate=1e-4 --hp n_steps=256
-    python train.py --output runs/ppo_highway --resume    # continue after an interruption
+    python train.py --output runs/dqn_highway --resume    # continue after an interruption
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
 ``algo``, ``timesteps``, ``n_envs``, ``seed`` and ``eval`` (``every`` steps, ``episodes``,

@@ -1,6 +1,6 @@
 """Trained stable-baselines3 policies as agents on the path-level envs.
 
-``evaluate.py --agents ppo:agents/highway/policies/ppo_highway.zip fsm_bold`` compares a
+``evaluate.py --agents dqn:agents/highway/policies/dqn_highway.zip fsm_bold`` compares a
 policy trained on ``sdc_gym/HighwayLoopBehavior-v0`` with the rule-based planner on the
 same ``sdc_gym/HighwayLoop-v0`` seeds: the policy takes the place of the FSM in the same
 layered agent (shared perception and motion of :mod:`sdc_gym.stack.highway`), through the
@@ -39,6 +39,15 @@ from sdc_gym.stack.track.detector import GroundTruthLightSource
 
 POLICY_KINDS = ("ppo", "dqn", "sac", "a2c")
 """Agent spec prefixes: ``<kind>:<path to model.zip>``."""
+PROJECT_ROOT = Path(__file__).resolve().parents[1]
+
+
+def resolve_model_path(path: str | Path) -> Path:
+    """``path`` as given, or relative to the project (committed policies) if only there."""
+    given = Path(path)
+    if not given.is_file() and not given.is_absolute() and (PROJECT_ROOT / given).is_file():
+        return PROJECT_ROOT / given
+    return given
 
 
 def load_model(kind: str, path: str | Path) -> Any:
@@ -47,7 +56,7 @@ def load_model(kind: str, path: str | Path) -> Any:
 
     if kind not in POLICY_KINDS:
         raise ValueError(f"unknown policy kind {kind!r}; valid: {list(POLICY_KINDS)}")
-    model_path = Path(path)
+    model_path = resolve_model_path(path)
     if not model_path.is_file():
         raise ValueError(f"{kind}: no model file at {model_path}")
     return getattr(stable_baselines3, kind.upper()).load(model_path, device="cpu")
@@ -55,7 +64,7 @@ def load_model(kind: str, path: str | Path) -> Any:
 
 def training_config(path: str | Path) -> tuple[str | None, dict[str, Any]]:
     """The env id and behavior-env config a model was trained with (None, {}: unknown)."""
-    model_path = Path(path)
+    model_path = resolve_model_path(path)
     for candidate in (model_path.with_suffix(".yaml"), model_path.parent / "config.yaml"):
         if candidate.is_file():
             data = yaml.safe_load(candidate.read_text(encoding="utf-8")) or {}

@@ -72,7 +72,7 @@ AGENT_KINDS: dict[str, AgentKindFactory] = {
     # through its wire protocol: "external:./path_planning" (agents/external.py).
     "external": _external_agent,
     # Trained stable-baselines3 policies of the behavior-level envs, in the place of the
-    # rule-based behavior layer: "ppo:agents/highway/policies/ppo_highway.zip"
+    # rule-based behavior layer: "dqn:agents/highway/policies/dqn_highway.zip"
     # (agents/policy_agent.py).
     **{kind: (lambda argument, env, _kind=kind, **options: _policy_agent(_kind, argument, env))
        for kind in ("ppo", "dqn", "sac", "a2c")},

@@ -1,6 +1,6 @@
 """How a behavior policy transfers to highway-env: crash rate next to its default agents.
 
-    python benchmarks/transfer_highway_env.py [--policy ppo:agents/highway/policies/ppo_highway.zip]
+    python benchmarks/transfer_highway_env.py [--policy dqn:agents/highway/policies/dqn_highway.zip]
         [--episodes 20] [--output transfer.json] [--target-speeds 20,25,30]
 
 Runs ``--episodes`` episodes (seeds 0..N-1, the same for every agent) of highway-env's
@@ -51,7 +51,7 @@ from agents.policy_agent import POLICY_KINDS
 
 ENV_ID = "highway-fast-v0"
 LANES = 3
-DEFAULT_POLICY = Path("agents/highway/policies/ppo_highway.zip")
+DEFAULT_POLICY = Path("agents/highway/policies/dqn_highway.zip")
 
 Chooser = Callable[[Any], int]
 """Given the env (after reset / the last step), the meta-action to take."""
@@ -158,7 +158,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--policy", default=None,
-                        help=f"kind:path of the policy (default ppo:{DEFAULT_POLICY} when it "
+                        help=f"kind:path of the policy (default dqn:{DEFAULT_POLICY} when it "
                              "exists; without it only the default agents run)")
     parser.add_argument("--episodes", type=int, default=20, help="episodes (seeds 0..N-1)")
     parser.add_argument("--output", type=Path, default=None, help="write the results as JSON")
@@ -170,7 +170,7 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit("--episodes must be >= 1")
     warnings.filterwarnings("ignore")
     speeds = parse_speeds(args.target_speeds)
-    spec = args.policy or (f"ppo:{DEFAULT_POLICY}" if DEFAULT_POLICY.is_file() else None)
+    spec = args.policy or (f"dqn:{DEFAULT_POLICY}" if DEFAULT_POLICY.is_file() else None)
 
     env = make_env(speeds)
     seeds = list(range(args.episodes))

@@ -172,3 +172,20 @@ def test_trained_policy_drives_the_path_level_env_as_in_its_behavior_env(tmp_pat
     with pytest.raises(ValueError, match="multiple"):
         make_agent(f"ppo:{path}", gym.make("sdc_gym/HighwayLoop-v0",
                                            config={"steps_per_action": 5}))
+
+
+def test_committed_policy_drives_a_held_out_seed_cleanly_and_changes_lanes():
+    """The committed DQN policy (evaluate.py's default) on a seed it never saw: no
+    incident, lap pace near the limit, and lane changes (it is not a keep-lane policy)."""
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"max_duration": 120.0})
+    agent = make_agent("dqn:agents/highway/policies/dqn_highway.zip", env)
+    observation, _ = env.reset(seed=1003)
+    agent.reset()
+    done = False
+    while not done:
+        observation, _, terminated, truncated, info = env.step(agent.act(observation))
+        done = terminated or truncated
+    summary = info["summary"]
+    assert summary["incident_total"] == 0 and summary["termination_reason"] == "max_duration"
+    assert summary["mean_speed_mph"] > 40.0
+    assert agent.behavior.executor.lane_changes >= 1

@@ -94,9 +94,14 @@ def test_seed_options():
     assert evaluate.parse_args(["--seeds", "3", "5", "8", "5"]).seeds == [3, 5, 8]
 
 
-def test_default_comparison_is_the_fsm_in_both_styles_and_the_baseline():
-    assert set(evaluate.DEFAULT_AGENTS) <= set(AGENTS)
-    assert list(evaluate.DEFAULT_AGENTS) == ["fsm_conservative", "fsm_bold", "lane_keeping"]
+def test_default_comparison_is_the_fsm_the_committed_policy_and_the_baseline():
+    from agents.policy_agent import resolve_model_path
+    from agents.registry import parse_agent_spec
+
+    assert list(evaluate.DEFAULT_AGENTS) == ["fsm_conservative", "fsm_bold",
+                                             evaluate.COMMITTED_POLICY, "lane_keeping"]
+    kind, path = parse_agent_spec(evaluate.COMMITTED_POLICY)
+    assert kind == "dqn" and resolve_model_path(path).is_file()
     assert evaluate.parse_args([]).agents is None  # resolved per env in main()
     assert set(evaluate.DEFAULT_TRACK_AGENTS) <= set(AGENTS)
 
