@@ -91,5 +91,10 @@ def test_committed_training_config_resolves():
     args = train.parse_args(["--config", str(CONFIGS / "train_highway_behavior.yaml"),
                              "--output", "/nonexistent/run"])
     config = train.run_config(args)
-    assert config["env"] == "sdc_gym/HighwayLoopBehavior-v0" and config["algo"] == "ppo"
-    assert config["timesteps"] > 0 and config["hyperparams"]["n_steps"] > 0
+    assert config["env"] == "sdc_gym/HighwayLoopBehavior-v0" and config["algo"] == "dqn"
+    assert config["timesteps"] == 600_000 and config["hyperparams"]["buffer_size"] > 0
+    # The committed policy's recorded config is this one.
+    recorded = yaml.safe_load((CONFIGS.parent / "agents" / "highway" / "policies"
+                               / "dqn_highway.yaml").read_text())
+    assert recorded["config"] == config["config"]
+    assert recorded["hyperparams"] == config["hyperparams"]

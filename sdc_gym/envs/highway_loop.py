@@ -13,7 +13,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS, TopDownRenderEnv
-from sdc_gym.geometry.collision import first_contact
+from sdc_gym.geometry.collision import contact_reach_sq, first_contact
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
@@ -236,6 +236,14 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._progress_scale = cfg["reward_progress"] / (
             self.rules.speed_limit * PHYSICS_DT * self.steps_per_action)
         self._empty_path = np.zeros((0, 2))
+        # Per-step constants: the path bounds tiled to the path's shape (same-shape
+        # comparisons skip numpy's broadcasting set-up), and whether every sensed row is
+        # present (then the telemetry takes the fusion rows without a masked copy).
+        self._action_low_rows = np.tile(low_xy, (n, 1))
+        self._action_high_rows = np.tile(high_xy, (n, 1))
+        self._all_rows_present = self.sensor_config.dropout_probability == 0.0
+        self._reach_sq: NDArray[np.float64] | None = None  # contact reach per traffic car ...
+        self._reach_version = -1  # ... for this traffic.sizes_version
         self._state_ready = False
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -261,8 +269,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._end_sd = (0.0, 0.0)
         self._done_reason = ""
         self._state_ready = True
-        samples = self.traffic.samples_now()
-        self._read_sensors(samples)
+        self._read_sensors()
         return self._observation(), self._info([], final=False)
 
     def step(self, action: Any) -> tuple[dict[str, Any], float, bool, bool, dict[str, Any]]:
@@ -273,17 +280,21 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
         frames = self.steps_per_action
         xy, yaw, speed = self._drive_ego(frames)
-        s, d = self._project(xy, speed)
-        samples = self.traffic.advance(frames, s, d, speed)
+        # The per-frame values go on as Python lists: projection, traffic and metrics work
+        # on a few floats each, where lists beat numpy's fixed cost per call.
+        points, speeds = xy.tolist(), speed.tolist()
+        s, d = self._project(points, speeds)
+        traffic = self.traffic
+        samples = traffic.advance(frames, s, d, speeds)
         contact = first_contact(
             xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
-            self.traffic.length, self.traffic.width, self.traffic.ids)
+            traffic.length, traffic.width, traffic.ids, reach_sq=self._contact_reach())
         progress_before = self.metrics.progress
-        incidents = self.metrics.record(xy, s, d, speed, contact)
+        incidents = self.metrics.record(points, s, d, speeds, contact)
 
-        self._xy, self._yaw, self._speed = xy[-1], float(yaw[-1]), float(speed[-1])
-        self._s, self._d = float(s[-1]), float(d[-1])
-        self._read_sensors(samples)
+        self._xy, self._yaw, self._speed = xy[-1], float(yaw[-1]), speeds[-1]
+        self._s, self._d = s[-1], d[-1]
+        self._read_sensors()
 
         reward = self._progress_scale * (self.metrics.progress - progress_before)
         for incident in incidents:
@@ -319,10 +330,13 @@ class HighwayLoopEnv(TopDownRenderEnv):
                              f"{self.path_points} (raise the 'path_points' config key)")
         # One test covers NaN, inf and out-of-bounds (NaN compares false); the message
         # is worked out only when it fails.
-        if not ((points >= self._action_low) & (points <= self._action_high)).all():
+        count = len(points)
+        inside = points >= self._action_low_rows[:count]
+        inside &= points <= self._action_high_rows[:count]
+        if np.count_nonzero(inside) < inside.size:  # not inside.all(), at a third of the cost
             self._raise_bad_point(points)
         # Trailing repeats of the last point are padding (see the class docstring).
-        if len(points) > 1 and (points[-1] == points[-2]).all():
+        if count > 1 and (last_two := points[-2:].tolist())[0] == last_two[1]:
             differs = np.flatnonzero(np.any(points != points[-1], axis=1))
             points = points[: (int(differs[-1]) + 2 if len(differs) else 1)]
         return points
@@ -340,25 +354,25 @@ class HighwayLoopEnv(TopDownRenderEnv):
             f"x in [{self._action_low[0]:.1f}, {self._action_high[0]:.1f}], "
             f"y in [{self._action_low[1]:.1f}, {self._action_high[1]:.1f}]")
 
-    def _project(self, xy: NDArray[np.float64],
-                 speed: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Frenet s, d of the ego's frames; the path's end point rides in the same call."""
-        points = xy.tolist()
+    def _project(self, points: list[list[float]],
+                 speeds: list[float]) -> tuple[list[float], list[float]]:
+        """Frenet s, d of the ego's frames (positions and speeds as lists); the path's end
+        point rides in the same call."""
+        frames = len(points)
         guesses = []
         guess = self._s
-        for frame_speed in speed.tolist():  # warm start: last s plus the distance driven
+        for frame_speed in speeds:  # warm start: last s plus the distance driven
             guess += frame_speed * PHYSICS_DT
             guesses.append(guess)
-        remaining = self._remaining_path()
-        if len(remaining):
-            end = remaining[-1].tolist()
+        has_end = self._path_start < len(self._path)
+        if has_end:
+            end = self._path[-1].tolist()
             # The path's end lies about its straight-line distance ahead of the car.
             guesses.append(guess + math.hypot(end[0] - points[-1][0], end[1] - points[-1][1]))
-            points.append(end)
+            points = [*points, end]
         s, d = self.road.reference.project_few(points, guesses)
-        frames = len(xy)
-        self._end_sd = (s[frames], d[frames]) if len(remaining) else (0.0, 0.0)
-        return np.array(s[:frames]), np.array(d[:frames])
+        self._end_sd = (s[frames], d[frames]) if has_end else (0.0, 0.0)
+        return s[:frames], d[:frames]
 
     def _apply_path(self, path: NDArray[np.float64]) -> None:
         """Adopt a newly arrived path, dropping the points before the one nearest the car.
@@ -373,8 +387,10 @@ class HighwayLoopEnv(TopDownRenderEnv):
         if len(path) == 0:
             self._path, self._path_start = self._empty_path, 0
             return
-        distance_sq = np.sum((path - self._xy) ** 2, axis=1)
-        nearest = int(np.argmin(distance_sq))
+        offset = path - self._xy  # squared distances: np.sum(offset**2, axis=1), in
+        offset *= offset          # cheaper calls (the same two-term sums)
+        distance_sq = offset[:, 0] + offset[:, 1]
+        nearest = int(distance_sq.argmin())
         if distance_sq[nearest] <= ON_POINT_M**2:
             nearest += 1
         self._path, self._path_start = path, nearest
@@ -382,44 +398,60 @@ class HighwayLoopEnv(TopDownRenderEnv):
     def _drive_ego(self, frames: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                NDArray[np.float64]]:
         """Move the ego ``frames`` physics frames along its path(s); arrays per frame."""
-        start = self._xy
-        xy = np.empty((frames, 2))
+        # Row 0: where the car starts; row 1 + k: where frame k leaves it.
+        track = np.empty((frames + 1, 2))
+        track[0] = self._xy
         yaw = np.empty(frames)
+        pending = self._pending
         done = 0
         while done < frames:
-            if self._pending and self._pending[0][0] <= self._frame:
-                self._apply_path(self._pending.popleft()[1])
+            if pending and pending[0][0] <= self._frame:
+                self._apply_path(pending.popleft()[1])
             horizon = frames - done
-            if self._pending:
-                horizon = min(horizon, self._pending[0][0] - self._frame)
-            remaining = self._path[self._path_start:]
-            moves = min(horizon, max(len(remaining) - 1, 0))
+            if pending:
+                horizon = min(horizon, pending[0][0] - self._frame)
+            path, first = self._path, self._path_start
+            moves = min(horizon, max(len(path) - first - 1, 0))
             if moves:
-                xy[done:done + moves] = remaining[:moves]
-                delta = remaining[1:moves + 1] - remaining[:moves]
+                stop = first + moves
+                track[done + 1:done + 1 + moves] = path[first:stop]
+                delta = path[first + 1:stop + 1] - path[first:stop]
                 yaw[done:done + moves] = np.arctan2(delta[:, 1], delta[:, 0])
-                self._path_start += moves
-                self._xy = remaining[moves - 1]
+                self._path_start = stop
+                self._xy = path[stop - 1]
                 self._yaw = float(yaw[done + moves - 1])
-            # Path exhausted: the car stands where it is (the original's stop dead).
-            xy[done + moves:done + horizon] = self._xy
-            yaw[done + moves:done + horizon] = self._yaw
+            if moves < horizon:
+                # Path exhausted: the car stands where it is (the original's stop dead).
+                track[done + 1 + moves:done + 1 + horizon] = self._xy
+                yaw[done + moves:done + horizon] = self._yaw
             done += horizon
             self._frame += horizon
         # A path due now arrives before the observation (the original's lock-step: the
         # reply is applied, then the next telemetry goes out).
-        while self._pending and self._pending[0][0] <= self._frame:
-            self._apply_path(self._pending.popleft()[1])
-        previous = np.vstack([start[None, :], xy])
-        speed = np.hypot(*np.diff(previous, axis=0).T) / PHYSICS_DT
-        return xy, yaw, speed
+        while pending and pending[0][0] <= self._frame:
+            self._apply_path(pending.popleft()[1])
+        step = track[1:] - track[:-1]
+        speed = np.hypot(step[:, 0], step[:, 1])
+        speed /= PHYSICS_DT
+        return track[1:], yaw, speed
 
     # ------------------------------------------------------------------ observation, info
-    def _read_sensors(self, samples: Any) -> None:
+    def _read_sensors(self) -> None:
+        """Sensor fusion of the traffic's current state (the last frame of the step)."""
         traffic = self.traffic
         self._fusion, self._fusion_mask = self.sensors.read(
-            traffic.ids, samples.x[-1], samples.y[-1], samples.vx[-1], samples.vy[-1],
-            samples.s[-1], samples.d[-1], self.np_random)
+            traffic.ids, traffic.x, traffic.y, traffic.vx, traffic.vy, traffic.s, traffic.d,
+            self.np_random)
+
+    def _contact_reach(self) -> NDArray[np.float64]:
+        """The collision broad phase's reach per car, kept while the cars' sizes stay."""
+        traffic = self.traffic
+        if traffic.sizes_version != self._reach_version:
+            self._reach_sq = contact_reach_sq(self.ego_length, self.ego_width, traffic.length,
+                                              traffic.width)
+            self._reach_version = traffic.sizes_version
+        assert self._reach_sq is not None
+        return self._reach_sq
 
     def _remaining_path(self) -> NDArray[np.float64]:
         return self._path[self._path_start:]
@@ -431,8 +463,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
         previous[:count] = remaining
         end_s, end_d = self._end_sd
         return {
-            "ego": np.array([self._xy[0], self._xy[1], self._s, self._d, self._yaw,
-                             self._speed], dtype=np.float32),
+            "ego": np.array([*self._xy.tolist(), self._s, self._d, self._yaw, self._speed],
+                            dtype=np.float32),
             "previous_path": previous,
             "previous_path_count": count,
             "end_path": np.array([end_s, end_d], dtype=np.float32),
@@ -441,7 +473,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         }
 
     def _info(self, incidents: list[Incident], *, final: bool) -> dict[str, Any]:
-        info: dict[str, Any] = dict(self.metrics.step_info())
+        info: dict[str, Any] = self.metrics.step_info()  # a new dict every call
         lane = math.floor(self._d / self.road.lane_width)
         info["lane"] = min(max(lane, -1), self.road.lane_count)  # as HighwayMap.lane_of
         info["new_incidents"] = [incident.kind for incident in incidents]
@@ -450,9 +482,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
         info["summary"] = self._summary() if final else None
         if self.config["telemetry_info"]:
             info["telemetry"] = TelemetryMessage(
-                float(self._xy[0]), float(self._xy[1]), self._yaw, self._speed, self._s,
-                self._d, self._remaining_path(), *self._end_sd,
-                self._fusion[self._fusion_mask])
+                *self._xy.tolist(), self._yaw, self._speed, self._s, self._d,
+                self._remaining_path(), *self._end_sd,
+                self._fusion if self._all_rows_present else self._fusion[self._fusion_mask])
         return info
 
     def _summary(self) -> dict[str, Any]:

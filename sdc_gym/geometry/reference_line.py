@@ -26,6 +26,8 @@ line turns left (counter-clockwise).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
@@ -137,6 +139,10 @@ class ReferenceLine:
         # Columns: position a, b, c, d; first derivative 3a, 2b (and c); second 6a (and 2b).
         self._coef = np.ascontiguousarray(np.stack([a, b, c, d, 3 * a, 2 * b, 6 * a], axis=1))
         self._coef_rows: list[tuple[complex, ...]] = [tuple(row) for row in self._coef.tolist()]
+        # The same rows as 14 floats, x and y of each coefficient in turn (a.x, a.y, b.x,
+        # ...), for the per-point loops that run on floats (_newton_points, line_frames_few).
+        xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
+        self._coef_xy_rows: list[tuple[float, ...]] = [tuple(row) for row in xy_rows.tolist()]
         self._total_param = coarse_length
 
     # ------------------------------------------------------------------ evaluation
@@ -294,8 +300,8 @@ class ReferenceLine:
         shape = points.shape[:-1]
         flat_u0 = np.broadcast_to(self._param(s0), shape).ravel().tolist()
         scale = self._param_scale
-        results = [self._newton_point(x, y, u0 / scale)
-                   for (x, y), u0 in zip(points.reshape(-1, 2).tolist(), flat_u0, strict=True)]
+        results = self._newton_points(points.reshape(-1, 2).tolist(),
+                                      [u0 / scale for u0 in flat_u0])
         s_out, d_out, moved_out = zip(*results, strict=True) if results else ((), (), ())
         return (np.array(s_out).reshape(shape), np.array(d_out).reshape(shape),
                 np.array(moved_out).reshape(shape))
@@ -309,20 +315,24 @@ class ReferenceLine:
         ``to_xy(s, d) == (x + d nx, y + d ny)``; agrees with the vectorized methods to
         rounding.
         """
-        rows, step_u, inverse = self._coef_rows, self._knot_step, self._inverse_step
+        rows, step_u, inverse = self._coef_xy_rows, self._knot_step, self._inverse_step
         last, scale, length = self._segments - 1, self._param_scale, self.length
         frames = []
         for s in s_values:
             u = (s % length) * scale
-            i = min(int(u * inverse), last)
-            a, b, c, d0, a3, b2, a6 = rows[i]
+            i = int(u * inverse)
+            if i > last:
+                i = last
+            ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = rows[i]
             t = u - i * step_u
-            point = ((a * t + b) * t + c) * t + d0
-            velocity = (a3 * t + b2) * t + c
-            speed = abs(velocity)
-            curvature = (velocity.conjugate() * (a6 * t + b2)).imag / speed**3
-            frames.append((point.real, point.imag, velocity.imag / speed,
-                           -velocity.real / speed, curvature))
+            # x and y apart, as in _newton_points; the speed is the complex abs (hypot).
+            velocity_x = (a3x * t + b2x) * t + cx
+            velocity_y = (a3y * t + b2y) * t + cy
+            speed = abs(complex(velocity_x, velocity_y))
+            # Im(conj(velocity) * acceleration): the cross product of r' and r''.
+            curvature = (velocity_x * (a6y * t + b2y) - velocity_y * (a6x * t + b2x)) / speed**3
+            frames.append((((ax * t + bx) * t + cx) * t + dx, ((ay * t + by) * t + cy) * t + dy,
+                           velocity_y / speed, -velocity_x / speed, curvature))
         return frames
 
     def project_few(self, points: list[list[float]],
@@ -334,8 +344,8 @@ class ReferenceLine:
         """
         s_out: list[float] = []
         d_out: list[float] = []
-        for (x, y), guess in zip(points, s_guesses, strict=True):
-            s, d, moved = self._newton_point(x, y, guess)
+        for (x, y), (s, d, moved) in zip(points, self._newton_points(points, s_guesses),
+                                         strict=True):
             if abs(moved) > _LOCAL_SEARCH_TRUST_M or abs(d) > _LOCAL_SEARCH_TRUST_M:
                 s, d, _ = self._newton_point(x, y, float(self.nearest_sample_s((x, y))))
             s_out.append(s)
@@ -344,29 +354,57 @@ class ReferenceLine:
 
     def _newton_point(self, x: float, y: float, s0: float) -> tuple[float, float, float]:
         """One point's Newton projection from ``s0``: s, d, and how far s moved."""
-        rows, step_u, inverse = self._coef_rows, self._knot_step, self._inverse_step
+        return self._newton_points([(x, y)], [s0])[0]
+
+    def _newton_points(self, points: Sequence[Sequence[float]], s_guesses: Sequence[float],
+                       ) -> list[tuple[float, float, float]]:
+        """Newton projections of a few points from their guessed s: (s, d, how far s
+        moved) each.
+
+        The env runs this for every frame, so it is written for CPython: the iteration
+        runs on floats, x and y apart, with the coefficients as floats
+        (``_coef_xy_rows``). That is the complex arithmetic's own rounding: a complex
+        times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``
+        (the same bits, without allocating complex numbers or computing the imaginary
+        parts nobody reads); the clamps are plain comparisons. The closing evaluation
+        (d, from ``abs`` of a complex velocity) stays complex.
+        """
+        rows, complex_rows = self._coef_xy_rows, self._coef_rows
+        step_u, inverse, length = self._knot_step, self._inverse_step, self.length
         last, total, scale = self._segments - 1, self._total_param, self._param_scale
-        p = complex(x, y)
-        u0 = (s0 % self.length) * scale
-        u = u0
-        for _ in range(_NEWTON_ITERATIONS):
-            i = min(int(u * inverse), last)
-            a, b, c, d0, a3, b2, a6 = rows[i]
+        results = []
+        for (x, y), s0 in zip(points, s_guesses, strict=True):
+            u0 = (s0 % length) * scale
+            u = u0
+            for _ in range(_NEWTON_ITERATIONS):
+                i = int(u * inverse)
+                if i > last:
+                    i = last
+                ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = rows[i]
+                t = u - i * step_u
+                offset_x = ((ax * t + bx) * t + cx) * t + dx - x
+                offset_y = ((ay * t + by) * t + cy) * t + dy - y
+                velocity_x = (a3x * t + b2x) * t + cx
+                velocity_y = (a3y * t + b2y) * t + cy
+                f = offset_x * velocity_x + offset_y * velocity_y
+                fp = (velocity_x * velocity_x + velocity_y * velocity_y) + (
+                    offset_x * (a6x * t + b2x) + offset_y * (a6y * t + b2y))
+                step = f / fp
+                if step > _MAX_NEWTON_STEP_M:
+                    step = _MAX_NEWTON_STEP_M
+                elif step < -_MAX_NEWTON_STEP_M:
+                    step = -_MAX_NEWTON_STEP_M
+                u = (u - step) % total
+                if -_NEWTON_TOLERANCE_M < step < _NEWTON_TOLERANCE_M:
+                    break
+            i = int(u * inverse)
+            if i > last:
+                i = last
+            a, b, c, d0, a3, b2, _ = complex_rows[i]
             t = u - i * step_u
-            offset = ((a * t + b) * t + c) * t + d0 - p
             velocity = (a3 * t + b2) * t + c
-            conj_velocity = velocity.conjugate()
-            f = (offset * conj_velocity).real
-            fp = (velocity * conj_velocity).real + (offset * (a6 * t + b2).conjugate()).real
-            step = max(min(f / fp, _MAX_NEWTON_STEP_M), -_MAX_NEWTON_STEP_M)
-            u = (u - step) % total
-            if abs(step) < _NEWTON_TOLERANCE_M:
-                break
-        i = min(int(u * inverse), last)
-        a, b, c, d0, a3, b2, _ = rows[i]
-        t = u - i * step_u
-        velocity = (a3 * t + b2) * t + c
-        point = ((a * t + b) * t + c) * t + d0
-        d = ((p - point) * (1j * velocity.conjugate())).real / abs(velocity)
-        moved = ((u - u0 + 0.5 * total) % total - 0.5 * total) / scale
-        return u / scale, d, moved
+            point = ((a * t + b) * t + c) * t + d0
+            d = ((complex(x, y) - point) * (1j * velocity.conjugate())).real / abs(velocity)
+            moved = ((u - u0 + 0.5 * total) % total - 0.5 * total) / scale
+            results.append((u / scale, d, moved))
+        return results

@@ -92,6 +92,11 @@ INCIDENT_KINDS: tuple[str, ...] = ("collision", "acceleration", "jerk", "speed",
 _KIND_ORDER = {kind: i for i, kind in enumerate(INCIDENT_KINDS)}
 
 
+def _as_list(values: np.ndarray | list[Any]) -> list[Any]:
+    """A list as it is, an array as a (nested) list of Python numbers."""
+    return values if type(values) is list else np.asarray(values).tolist()
+
+
 @dataclass(frozen=True)
 class IncidentRules:
     """Sampling and thresholds of the incident rules; defaults are the Udacity highway's.
@@ -261,14 +266,17 @@ class DrivingMetrics:
 
     def record(
         self,
-        xy: np.ndarray,
-        s: np.ndarray,
-        d: np.ndarray,
-        speed: np.ndarray,
+        xy: np.ndarray | list[list[float]],
+        s: np.ndarray | list[float],
+        d: np.ndarray | list[float],
+        speed: np.ndarray | list[float],
         collision_ids: np.ndarray | None = None,
         extra_incidents: list[tuple[int, str, float]] | None = None,
     ) -> list[Incident]:
         """Add ``k >= 1`` consecutive physics steps and return the incidents they began.
+
+        ``xy``, ``s``, ``d`` and ``speed`` may be arrays or the same as (nested) Python
+        lists of floats, which skips their conversion (the highway env passes lists).
 
         Args:
             xy: positions, shape ``(k, 2)``, m.
@@ -289,10 +297,7 @@ class DrivingMetrics:
         if k == 0:
             return []
         rules = self.rules
-        pts = xy.tolist()
-        speed_l = speed.tolist()
-        s_l = s.tolist()
-        d_l = d.tolist()
+        pts, speed_l, s_l, d_l = (_as_list(values) for values in (xy, speed, s, d))
 
         # ---- geometry. A scalar loop on Python floats: for the 1-5 samples of an env
         # step it is ~3x faster than the equivalent numpy expressions, whose fixed cost

@@ -71,6 +71,10 @@ class HighwaySensors:
         self.config = config
         self.loop_length = loop_length
         self._zero_frames_left = np.zeros(car_count, dtype=np.int64)
+        self._perfect = config.is_perfect
+        # Without dropouts every row is present: one read-only mask serves every frame.
+        self._all_present = np.ones(car_count, dtype=bool)
+        self._all_present.flags.writeable = False
 
     def reset(self) -> None:
         self._zero_frames_left[:] = 0
@@ -80,13 +84,16 @@ class HighwaySensors:
         vx: NDArray[np.float64], vy: NDArray[np.float64], s: NDArray[np.float64],
         d: NDArray[np.float64], rng: np.random.Generator,
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """One frame: rows ``[id, x, y, vx, vy, s, d]`` (n, 7) and which rows are present."""
-        fusion = np.stack([ids.astype(np.float64), x, y, vx, vy, s, d], axis=-1)
-        present = np.ones(len(ids), dtype=bool)
-        config = self.config
-        if config.is_perfect:
-            return fusion, present
+        """One frame: rows ``[id, x, y, vx, vy, s, d]`` (n, 7) and which rows are present
+        (a read-only array, shared between frames, when the sensor has no dropouts)."""
         n = len(ids)
+        # The fields as rows, then one transposing copy: a third of np.stack's cost on the
+        # dozen cars of a frame (which is all per-call overhead).
+        fusion = np.array([ids, x, y, vx, vy, s, d], dtype=np.float64).T.copy()
+        present = self._all_present if len(self._all_present) == n else np.ones(n, dtype=bool)
+        if self._perfect:
+            return fusion, present
+        config = self.config
         if config.position_noise > 0:
             fusion[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
             fusion[:, 5] = np.mod(fusion[:, 5], self.loop_length)

@@ -229,6 +229,35 @@ class TrafficSamples:
     vx: FloatArray
     vy: FloatArray
 
+    @classmethod
+    def _make(cls, s: FloatArray, d: FloatArray, speed: FloatArray, x: FloatArray,
+              y: FloatArray, heading: FloatArray, vx: FloatArray,
+              vy: FloatArray) -> TrafficSamples:
+        """The constructor without the frozen dataclass's eight ``object.__setattr__``
+        calls (a few microseconds, every env step): the same object."""
+        made = object.__new__(cls)
+        made.__dict__.update(s=s, d=d, speed=speed, x=x, y=y, heading=heading, vx=vx, vy=vy)
+        return made
+
+
+def _any(mask: NDArray[np.bool_]) -> bool:
+    """``mask.any()`` at a quarter of its cost on the small arrays of a step (a reduction
+    has a large fixed cost in numpy; counting does not)."""
+    return np.count_nonzero(mask) > 0
+
+
+def _smallest(values: FloatArray) -> float:
+    """``float(values.min())`` for a few dozen floats, cheaper through a list (no NaN here)."""
+    return min(values.ravel().tolist()) if values.size else math.inf
+
+
+def _per_step(values: ArrayLike, steps: int) -> list[float] | FloatArray:
+    """``values`` as ``steps`` floats: a list of that length as it is (the env passes its
+    per-frame lists; only a few entries are read), anything else through numpy."""
+    if type(values) is list and len(values) == steps:
+        return values
+    return np.asarray(values, dtype=np.float64).reshape(steps)
+
 
 def _stopping_gap(v_back: FloatArray, v_front: FloatArray, cfg: TrafficConfig,
                   delay: float) -> FloatArray:
@@ -252,7 +281,9 @@ class HighwayTraffic:
     holding the car's centre), ``target_lane`` (the destination of a lane change, else the
     car's lane), ``length``, ``width``, ``type_index``, ``x``, ``y``, ``heading``, ``vx``,
     ``vy``, and ``desired_speed`` (m/s). ``rogue_brake_count`` and ``rogue_cut_in_count``
-    count rogue events since the reset.
+    count rogue events since the reset. ``sizes_version`` changes whenever a car's
+    ``length`` or ``width`` may have (reset, respawn), so callers can keep values derived
+    from the sizes until it does.
     """
 
     def __init__(self, road: HighwayMap, config: TrafficConfig | None = None,
@@ -306,6 +337,11 @@ class HighwayTraffic:
         self._geo_t = np.ascontiguousarray(np.vstack([
             np.column_stack([values, end]), np.column_stack([steps, np.zeros(6)])]))
         self._clamp_cell = self._loop * self._grid_scale > count
+        # Constants of the per-step arithmetic as 0-d arrays: numpy converts a Python float
+        # operand on every call, which on a dozen cars costs more than the arithmetic.
+        self._loop_0d = np.array(self._loop)
+        self._grid_scale_0d = np.array(self._grid_scale)
+        self._one_0d = np.array(1.0)
         # A car's d stays within [w/2 - wander, (lanes - 1/2) w + wander]: inside the road
         # (its lane index needs no clamp) while the wander is under half a lane.
         self._clamp_lane = config.lateral_wander >= 0.45 * self._lane_width
@@ -317,6 +353,7 @@ class HighwayTraffic:
         # Gaps at reset are laid out in s; divide by this to hold them in lane metres too.
         self._min_scale = max(1.0 - float(np.abs(kappa).max()) * self.road.road_width, 0.5)
         self._rng: np.random.Generator | None = None
+        self.sizes_version = 0
         self._allocate(config.car_count)
 
     # ------------------------------------------------------------------ state
@@ -324,6 +361,7 @@ class HighwayTraffic:
         cfg = self.config
         zeros = np.zeros(n)
         self.n = n
+        self.sizes_version += 1
         self.ids: IntArray = np.arange(n, dtype=np.int64)
         self.type_index: IntArray = np.zeros(n, dtype=np.int64)
         self.length: FloatArray = zeros.copy()
@@ -332,7 +370,6 @@ class HighwayTraffic:
         self.d: FloatArray = zeros.copy()
         self.speed: FloatArray = zeros.copy()
         self.desired_speed: FloatArray = zeros.copy()
-        self.lane: IntArray = np.zeros(n, dtype=np.int64)
         self.target_lane: IntArray = np.zeros(n, dtype=np.int64)
         self.x: FloatArray = zeros.copy()
         self.y: FloatArray = zeros.copy()
@@ -464,6 +501,7 @@ class HighwayTraffic:
         self.type_index[i] = type_index
         self.length[i] = vtype.length
         self.width[i] = vtype.width
+        self.sizes_version += 1
         self._half_len_all[i] = 0.5 * vtype.length
         self._hh_dirty = True
         self._a_all[i] = vtype.comfort_accel
@@ -478,7 +516,7 @@ class HighwayTraffic:
         self._lc_end[i] = _IDLE
         self._pending[i] = -1
         self._held[i] = 0
-        self._acc[i] = 0.0
+        self._acc[i] = self._half_acc[i] = 0.0
         self._brake_until[i] = self._cut_in_until[i] = 0
         self._wander_omega[i] = 2.0 * np.pi / rng.uniform(*cfg.wander_period)
         self._wander_phase[i] = rng.uniform(0.0, 2.0 * np.pi)
@@ -694,9 +732,8 @@ class HighwayTraffic:
             raise RuntimeError("call reset() before advance()")
         if steps < 1:
             raise ValueError(f"steps must be >= 1; got {steps}")
-        ego_s = np.asarray(ego_s, dtype=np.float64).reshape(steps)
-        ego_d = np.asarray(ego_d, dtype=np.float64).reshape(steps)
-        ego_speed = np.asarray(ego_speed, dtype=np.float64).reshape(steps)
+        ego_s, ego_d, ego_speed = (_per_step(values, steps)
+                                   for values in (ego_s, ego_d, ego_speed))
         period = self.config.decision_period
         phase = self._step % period
         if steps <= period - phase:  # the usual call: at most one decision, at the start
@@ -796,7 +833,7 @@ class HighwayTraffic:
                 self._lc_constants()
             # Quintic minimum-jerk step 10t^3 - 15t^4 + 6t^5 and its time derivative
             # (30 shift / duration) tau^2 (1 - tau)^2, from the per-car tables.
-            profile = np.take(self._lc_table, (base + k) - self._lc_base, axis=1, mode="clip")
+            profile = self._lc_table.take((base + k) - self._lc_base, axis=1, mode="clip")
             profile *= self._lc_gain
             d += profile[0]
             d_dot += profile[1]
@@ -812,22 +849,21 @@ class HighwayTraffic:
         v0, acc = self.speed, self._acc
         base = self._step
         # (acc, acc / 2, omega) * (t, t, t_abs) + (v0, v0, phase): the speed, the
-        # distance term v0 + acc t / 2 and the wander angle.
-        np.multiply(acc, 0.5, out=self._half_acc)
+        # distance term v0 + acc t / 2 and the wander angle (acc / 2 is kept by _decide).
         start3 = self._start3
         start3[:2, 0] = v0
         np.add(base * self.dt, t, out=times3[2])
         rates = self._rate3 * times3
         rates += start3
         v, inner, angle = rates[0], rates[1], rates[2]
-        low = self._end_low = float(v[-1].min()) if self.n else np.inf
+        low = self._end_low = _smallest(v[-1])
         if low > 1e-6:
             # No car reaches v = 0 within the segment: v0 + acc t_max > 1e-6 puts the
             # stop time v0 / -acc beyond t_max by far more than rounding, so te = t.
             te = t
             known, known_low = self._speed_low
             if known is not v0:
-                known_low = float(v0.min()) if self.n else np.inf
+                known_low = _smallest(v0)
             low = min(low, known_low)  # v is monotonic in t
         else:
             # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
@@ -844,7 +880,7 @@ class HighwayTraffic:
         d, d_dot = self._lateral(m, base, angle)
         # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
         scale = self._kappa * d
-        scale += 1.0
+        scale += self._one_0d
         inc /= scale
         s = np.add.accumulate(inc, axis=0)
         s += self.s
@@ -860,13 +896,16 @@ class HighwayTraffic:
         """World pose of ``(steps, n)`` Frenet states: one table lookup for all of them.
 
         ``low``: a lower bound of ``v``, if known."""
-        s = s % self._loop
-        u = s * self._grid_scale
-        i = u.astype(np.intp)
+        s = s % self._loop_0d
+        u = s * self._grid_scale_0d
+        # Cell index and fraction; floor is the cast's truncation for u >= 0, and u - floor
+        # is float arithmetic, which numpy runs without the int-to-float buffering of u - i.
+        cell = np.floor(u)
         if self._clamp_cell:  # s == L after rounding; else the table's extra column
-            np.minimum(i, self._grid_count - 1, out=i)
-        f = u - i
-        g = np.take(self._geo_t, i, axis=1)  # (12, steps, n): values, then steps
+            np.minimum(cell, self._grid_count - 1, out=cell)
+        f = u - cell
+        i = cell.astype(np.intp)
+        g = self._geo_t.take(i, axis=1)  # (12, steps, n): values, then steps
         geo = g[6:] * f
         geo += g[:6]  # x, y, tx, ty, ty, -tx
         normal = geo[4:]
@@ -877,15 +916,14 @@ class HighwayTraffic:
         vxy += d_dot * normal
         # Heading of the motion; a (near) stopped car keeps pointing along its lane.
         if low is None:
-            low = float(v.min()) if v.size else np.inf
+            low = _smallest(v)
         if low >= 1.0:
             direction = vxy
         else:
             direction = np.maximum(v, 1.0) * geo[2:4]
             direction += d_dot * normal
         heading = np.arctan2(direction[1], direction[0])
-        return TrafficSamples(s=s, d=d, speed=v, x=xy[0], y=xy[1], heading=heading,
-                              vx=vxy[0], vy=vxy[1])
+        return TrafficSamples._make(s, d, v, xy[0], xy[1], heading, vxy[0], vxy[1])
 
     def _update_pose(self, samples: TrafficSamples) -> None:
         self.s = samples.s[-1]
@@ -896,10 +934,15 @@ class HighwayTraffic:
         self.heading = samples.heading[-1]
         self.vx = samples.vx[-1]
         self.vy = samples.vy[-1]
+
+    @property
+    def lane(self) -> IntArray:
+        """``(n,)`` the lane holding each car's centre (worked out when read: the
+        simulation itself never needs it)."""
         lane = (self.d * (1.0 / self._lane_width)).astype(np.int64)
         if self._clamp_lane:  # else d always lies within the road (see __init__)
             lane = np.minimum(np.maximum(lane, 0), self._lanes - 1)
-        self.lane = lane
+        return lane
 
     # ------------------------------------------------------------------ decisions
     def _fill_objects(self, ego_s: float, ego_d: float, ego_speed: float) -> None:
@@ -939,7 +982,7 @@ class HighwayTraffic:
         if self._step < self._respawn_blocked_until:
             return False
         far = (np.abs(rel) > self._range) & (self._respawn_wait <= self._step)
-        if not far.any():
+        if not _any(far):
             return False
         rng = self._rng
         assert rng is not None
@@ -962,7 +1005,7 @@ class HighwayTraffic:
                 self._respawn_wait[i] = self._step + _RESPAWN_RETRY_STEPS
                 self._respawn_blocked_until = self._step + _RESPAWN_PAUSE_STEPS
                 break  # the others would not fit either, most likely
-        self._changing_any = bool((self._lc_end < _IDLE).any())
+        self._changing_any = _any(self._lc_end < _IDLE)
         return moved
 
     def _decide(self) -> None:
@@ -971,7 +1014,10 @@ class HighwayTraffic:
         Per-lane quantities are ``(lanes, n)`` arrays (lane first: numpy's inner loops then
         run over the cars, which is what makes the masked argmin cheap). The work goes
         into preallocated buffers, in as few numpy calls as the arithmetic allows (with a
-        dozen cars each call costs far more than its arithmetic).
+        dozen cars each call costs far more than its arithmetic), and through the cheapest
+        form of each call: array methods (``.take``) and ``np.putmask`` rather than
+        ``np.take`` and ``np.copyto(where=)``, whose Python-level dispatch costs more than
+        the gather itself; :func:`_any` rather than ``.any()``.
         """
         n = self.n
         if n == 0:
@@ -984,22 +1030,22 @@ class HighwayTraffic:
         rows = self._rows
         if self._changing_any and step >= self._lc_next_end:
             finished = self._lc_end <= step  # finished lane changes free their origin lane
-            if finished.any():
+            if _any(finished):
                 self._origin = np.where(finished, self.target_lane, self._origin)
                 self._lc_start = np.where(finished, _NEVER, self._lc_start)
                 self._lc_end = np.where(finished, _IDLE, self._lc_end)
-                self._changing_any = bool((self._lc_end < _IDLE).any())
+                self._changing_any = _any(self._lc_end < _IDLE)
                 self._occ_dirty = True
                 self._lc_dirty = True
             self._lc_next_end = int(self._lc_end.min())
         self._fill_objects(ego_s, ego_d, ego_speed)
         rel = self._relative(ego_s)
         tmp = self._idm_tmp
-        farthest = np.abs(rel, out=tmp).max()
+        farthest = max(map(abs, rel.tolist()))
         if farthest > self._range and self._recycle(rel[:n]):  # cars moved: rebuild
             self._fill_objects(ego_s, ego_d, ego_speed)
             rel = self._relative(ego_s)
-            farthest = np.abs(rel, out=tmp).max()
+            farthest = max(map(abs, rel.tolist()))
         # delta[i, j]: s of object j minus s of car i. Unfolded differences of the folded
         # offsets from the ego are exact while every |rel| < L/4 (the usual case).
         delta2 = self._delta2
@@ -1021,25 +1067,25 @@ class HighwayTraffic:
         # occupying a lane pushed to inf. Ties at delta = 0 count as behind; a car is
         # neither ahead of nor behind itself (its own penalty, behind).
         np.less_equal(delta2, self._invalid_cut, out=self._invalid)
-        np.copyto(delta2, np.inf, where=self._invalid)
+        np.putmask(delta2, self._invalid, np.inf)
         search = np.add(delta2[:, None], self._penalty2, out=self._search)
         idx3 = self._idx3
         idx = search.argmin(axis=3, out=idx3[1:])  # (2, lanes, n) object index
         idx_flat = idx + self._search_base
-        ds = np.take(search, idx_flat)  # (2, lanes, n): distance in s ahead, behind
+        ds = search.take(idx_flat)  # (2, lanes, n): distance in s ahead, behind
         li, fi = idx[0], idx[1]
         # Bumper gaps along the follower's lane, into the IDM buffers: rows every lane
         # ahead, the own lane(s), every lane behind; leader speeds likewise.
         gap2 = self._ds_gap
-        np.multiply(ds, np.take(scale_all, idx3[::2]), out=gap2)
+        np.multiply(ds, scale_all.take(idx3[::2]), out=gap2)
         if self._hh_dirty:  # half lengths of car i plus object j, in the search layout
             np.copyto(self._halves2, half_len + half_len[:n, None])
             self._hh_dirty = False
-        gap2 -= np.take(self._halves2, idx_flat)
+        gap2 -= self._halves2.take(idx_flat)
         lead_gap, follow_gap = gap2[0], gap2[1]
         gap_v = self._gap_v
         lead_v = gap_v[1, :lanes]
-        np.take(self._v_all, li, out=lead_v)
+        self._v_all.take(li, out=lead_v)
 
         # IDM in every lane (as if there) and with the leader over the occupied lane(s).
         if self._changing_any:  # nearest leader over both lanes of a changing car
@@ -1048,7 +1094,7 @@ class HighwayTraffic:
             gap_v[0, lanes] = own_gaps[own, rows]
             gap_v[1, lanes] = lead_v[own, rows]
         else:
-            gap_v[:, lanes] = np.take(self._gap_v_flat, self._own_flat, axis=1)
+            gap_v[:, lanes] = self._gap_v_flat.take(self._own_flat, axis=1)
         # Per-object terms (the ego "wants" its current speed), then idm_core's arithmetic
         # for every gap row at once: the car in every lane and in its own, and the new
         # follower behind it in every lane (MOBIL's imposed braking), leader the car.
@@ -1085,7 +1131,7 @@ class HighwayTraffic:
         if step < self._brake_max:
             candidate &= step >= brake_until
         start = None
-        if candidate.any():
+        if _any(candidate):
             limit = -cfg.lane_change_max_braking_imposed
             candidate &= (acc_lane >= limit) & ((imposed >= limit) | np.isinf(follow_gap))
             best = np.where(candidate, acc_lane, -np.inf).argmax(axis=0)
@@ -1097,7 +1143,7 @@ class HighwayTraffic:
             self._wishes = True
             # held >= sustain >= 1 implies a (sustained) wish.
             start = held >= self._sustain_decisions if self._sustain_decisions else want >= 0
-            if start.any():
+            if _any(start):
                 # One start per target lane per decision (the lowest slot): two cars
                 # entering a lane at once did not see each other in their checks. The
                 # others keep their sustained wish and retry at the next decision.
@@ -1114,6 +1160,7 @@ class HighwayTraffic:
                                     follow_gap, lead_v, fi)
             if rogue_acc is not acc:
                 np.copyto(acc, rogue_acc)  # acc is self._acc: held until the next decision
+        np.multiply(acc, 0.5, out=self._half_acc)  # for _segment's distance term
 
     def _idm(self, v: FloatArray, terms: FloatArray, leader_v: FloatArray,
              gap: FloatArray, out: FloatArray) -> FloatArray:
@@ -1141,7 +1188,7 @@ class HighwayTraffic:
         """s of every object (cars, then the ego) minus the ego's, folded to [-L/2, L/2)."""
         rel = np.subtract(self._s_all, ego_s, out=self._rel)
         rel += self._half_loop
-        np.remainder(rel, self._loop, out=rel)
+        np.remainder(rel, self._loop_0d, out=rel)
         rel -= self._half_loop
         return rel
 

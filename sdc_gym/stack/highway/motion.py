@@ -290,13 +290,13 @@ class SeedMotionPlanner:
         # first: one cycle's frames. (Points that coincide, a car at rest, match there
         # too, which keeps the count in step with the env's.)
         reach = min(stop - start, self._lead + 2 * self.params.frames_per_cycle + 2)
-        points = self._buffer[start:start + reach, :2].tolist()
         expected = min(self.params.frames_per_cycle, reach) - 1
         tolerance2 = _MATCH_TOLERANCE_M**2
-        px, py = points[expected]
+        px, py = self._buffer[start + expected, :2].tolist()
         if (px - cx) ** 2 + (py - cy) ** 2 <= tolerance2:
             self._consumed = expected + 1
         else:
+            points = self._buffer[start:start + reach, :2].tolist()
             for index, (px, py) in enumerate(points):
                 if (px - cx) ** 2 + (py - cy) ** 2 <= tolerance2:
                     self._consumed = index + 1
@@ -310,7 +310,7 @@ class SeedMotionPlanner:
             # The path ran out under the car: continue from the car as observed.
             self._restart()
             return
-        self._anchor = points[self._consumed - 1]
+        self._anchor = [px, py]  # the point the car stands on
         self._start = start + self._consumed
 
     def _restart(self) -> None:
@@ -357,6 +357,8 @@ class SeedMotionPlanner:
         cos, sin, atan2, sqrt = math.cos, math.sin, math.atan2, math.sqrt
         rows: list[tuple[float, ...]] = []
         start_increment, max_increment = p.start_increment, p.max_increment
+        # cos, sin of the heading: worked out again only when the heading changes.
+        c, sn = cos(heading), sin(heading)
         while count > 0:
             k = count if count < p.batch_points else p.batch_points
             count -= k
@@ -411,7 +413,6 @@ class SeedMotionPlanner:
             else:
                 low, high = -gate, gate
             for i, step in enumerate(increments):
-                c, sn = cos(heading), sin(heading)
                 if steering and step >= min_increment:
                     aim = aims[i]
                     dx, dy = aim.real - x, aim.imag - y

@@ -169,11 +169,17 @@ class Perception:
         self._geometry = np.ascontiguousarray(np.hstack([base[:-1], np.diff(base, axis=0)]).T)
         self._geometry_scale = n / self._length
 
-        # The same table as Python tuples per sample (point, normal, curvature, increments):
-        # a cycle interpolates it per car in Python floats, which gives the same numbers as
-        # the array expression in _lookup (a real times a complex, then a sum).
-        self._geometry_rows: list[tuple[complex, ...]] = [
-            tuple(row) for row in self._geometry.T.tolist()]
+        # The same table as Python tuples of floats per sample, x and y apart (the
+        # curvature is real): px, py, nx, ny, curvature, then their increments. A cycle
+        # interpolates it per car in Python floats, which gives the same numbers as the
+        # array expression in _lookup (a real times a complex is the two real products,
+        # then a sum).
+        self._geometry_xy_rows: list[tuple[float, ...]] = [
+            (point.real, point.imag, normal.real, normal.imag, bend.real,
+             point_step.real, point_step.imag, normal_step.real, normal_step.imag,
+             bend_step.real)
+            for point, normal, bend, point_step, normal_step, bend_step
+            in self._geometry.T.tolist()]
 
         # Circumradius table: the reciprocal (curvature of the circumcircle), per lane.
         m = max(math.ceil(self._length / _RADIUS_STEP), 16)
@@ -259,7 +265,8 @@ class Perception:
 
         Per car in Python floats (with 12 cars, cheaper than a dozen numpy calls) and
         bit-identical to the array version: the geometry lookup and the fault test use
-        only real-by-complex products and sums, which numpy rounds alike; the velocity
+        only real-by-complex products and sums, which numpy rounds alike (and which are
+        computed here on the x and y parts: the same products and sums); the velocity
         projection (a full complex product, which numpy fuses) stays one numpy call.
         """
         p = self.params
@@ -270,12 +277,14 @@ class Perception:
         mask = observation.get("sensor_fusion_mask")
         if mask is not None:
             rows = list(itertools.compress(rows, np.asarray(mask).tolist()))
-        length, scale, table = self._length, self._geometry_scale, self._geometry_rows
+        length, scale, table = self._length, self._geometry_scale, self._geometry_xy_rows
         tracking = p.tracking
         tolerance = p.fault_tolerance
         # The fault test: Python's |z| against the tolerance, except within rounding of the
-        # boundary, where numpy's own modulus decides (as the array version did).
+        # boundary, where numpy's own modulus decides (as the array version did). A squared
+        # miss clearly inside the tolerance skips it (no |z|: the usual, sound car).
         below, above = tolerance * (1.0 - 1e-9), tolerance * (1.0 + 1e-9)
+        sound_sq = (tolerance * (1.0 - 1e-6)) ** 2
         ids: list[int] = []
         s_out: list[float] = []
         d_out: list[float] = []
@@ -287,21 +296,25 @@ class Perception:
             s %= length
             u = s * scale
             i = int(u)  # s < length: at most n, the table's last row
-            point, normal, bend, point_step, normal_step, bend_step = table[i]
+            px, py, nx, ny, bend, px_step, py_step, nx_step, ny_step, bend_step = table[i]
             t = u - i
-            normal = normal + t * normal_step
-            miss = abs(point + t * point_step + d * normal - complex(x, y))
-            if (miss > above or (s == 0.0 and d == 0.0) or (
-                    not miss <= below and np.abs(np.array([point + t * point_step + d * normal
-                                                           - complex(x, y)]))[0] > tolerance)):
-                faulty.append(index)
+            nx += t * nx_step
+            ny += t * ny_step
+            # (s, d) as a point, minus the sensed (x, y).
+            miss_x = px + t * px_step + d * nx - x
+            miss_y = py + t * py_step + d * ny - y
+            if miss_x * miss_x + miss_y * miss_y > sound_sq or (s == 0.0 and d == 0.0):
+                miss = complex(miss_x, miss_y)
+                if (abs(miss) > above or (s == 0.0 and d == 0.0) or (
+                        not abs(miss) <= below and np.abs(np.array([miss]))[0] > tolerance)):
+                    faulty.append(index)
             ids.append(int(car_id))
             s_out.append(s)
             d_out.append(d)
             velocity.append(complex(vx, vy))
-            normals.append(normal)
+            normals.append(complex(nx, ny))
             if tracking:
-                curvature.append((bend + t * bend_step).real)
+                curvature.append(bend + t * bend_step)
         if faulty:
             xy = np.array([rows[index][1:3] for index in faulty], dtype=np.float64)
             s_fixed, d_fixed = self.road.reference.to_frenet(xy)
@@ -309,13 +322,13 @@ class Perception:
                                    strict=True):
                 u = s * scale
                 i = int(u)
-                _, normal, bend, _, normal_step, bend_step = table[i]
+                _, _, nx, ny, bend, _, _, nx_step, ny_step, bend_step = table[i]
                 t = u - i
                 s_out[index] = s
                 d_out[index] = d
-                normals[index] = normal + t * normal_step
+                normals[index] = complex(nx + t * nx_step, ny + t * ny_step)
                 if tracking:
-                    curvature[index] = (bend + t * bend_step).real
+                    curvature[index] = bend + t * bend_step
         # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
         projected = np.array(velocity, np.complex128) * np.array(normals, np.complex128).conj()
         return (ids, s_out, d_out, projected.imag.tolist(), projected.real.tolist(),
