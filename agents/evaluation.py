@@ -218,10 +218,10 @@ def run_episode(spec: EpisodeSpec, progress: ProgressCallback | None = None) -> 
 def _summary_now(env: gym.Env, stopped: EpisodeAborted) -> dict[str, Any]:
     """The env's end-of-episode summary for an episode ended early by ``stopped``.
 
-    The envs build it only on their final step, and offer no public call for it: this
-    uses their ``_summary()`` (both sdc-gym envs have one) and sets the reason.
+    The envs put it in ``info`` only on their final step; their ``summary()`` gives it at
+    any time, and the reason is set here.
     """
-    summary = dict(env.unwrapped._summary())
+    summary = dict(env.unwrapped.summary())
     summary.update(termination_reason=stopped.reason, abort_message=str(stopped))
     return summary
 

@@ -305,7 +305,7 @@ def test_manual_override_ignores_the_agent_and_says_so():
     assert all(speed == 0.0 for _, _, speed in trace[:50])
     assert trace[149][2] > 1.0  # the human drove off although the agent braked
     assert trace[-1][2] == 0.0  # the agent's brake is back in charge
-    assert env.unwrapped._summary()["manual_time"] == pytest.approx(2.0)
+    assert env.unwrapped.summary()["manual_time"] == pytest.approx(2.0)
 
 
 def test_random_manual_periods_respect_their_intervals_and_durations():

@@ -479,7 +479,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         info["new_incidents"] = [incident.kind for incident in incidents]
         info["is_success"] = self.metrics.laps_completed >= self.config["laps"]
         info["termination_reason"] = self._done_reason if final else ""
-        info["summary"] = self._summary() if final else None
+        info["summary"] = self.summary() if final else None
         if self.config["telemetry_info"]:
             info["telemetry"] = TelemetryMessage(
                 *self._xy.tolist(), self._yaw, self._speed, self._s, self._d,
@@ -487,7 +487,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
                 self._fusion if self._all_rows_present else self._fusion[self._fusion_mask])
         return info
 
-    def _summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, Any]:
+        """The episode's summary so far, as ``info["summary"]`` holds it at the end (an
+        episode stopped from outside, e.g. by an evaluation, reads it here)."""
         summary = self.metrics.summary()
         summary["is_success"] = self.metrics.laps_completed >= self.config["laps"]
         summary["termination_reason"] = self._done_reason

@@ -957,11 +957,13 @@ class TrackLoopEnv(TopDownRenderEnv):
             "new_incidents": [incident.kind for incident in incidents],
             "is_success": success,
             "termination_reason": self._done_reason if final else "",
-            "summary": self._summary() if final else None,
+            "summary": self.summary() if final else None,
         })
         return info
 
-    def _summary(self) -> dict[str, Any]:
+    def summary(self) -> dict[str, Any]:
+        """The episode's summary so far, as ``info["summary"]`` holds it at the end (an
+        episode stopped from outside, e.g. by an evaluation, reads it here)."""
         summary = self.metrics.summary()
         summary["is_success"] = self.metrics.driving.laps_completed >= self._laps
         summary["termination_reason"] = self._done_reason
