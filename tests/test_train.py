@@ -98,3 +98,19 @@ def test_committed_training_config_resolves():
                                / "dqn_highway.yaml").read_text())
     assert recorded["config"] == config["config"]
     assert recorded["hyperparams"] == config["hyperparams"]
+
+
+def test_sac_trains_the_continuous_variant(tmp_path):
+    from stable_baselines3 import SAC
+
+    output = tmp_path / "sac"
+    config = tmp_path / "sac.yaml"
+    config.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", "algo": "sac",
+                                      "config": {**SHORT, "action": "continuous"},
+                                      "eval": {"every": 0}}))
+    model = train.main(["--config", str(config), "--output", str(output), "--n-envs", "1",
+                        "--timesteps", "200", "--hp", "learning_starts=100",
+                        "--hp", "batch_size=32", "--no-progress"])
+    sac = SAC.load(model)
+    assert sac.num_timesteps == 200 and sac.action_space.shape == (2,)
+    assert (output / "replay_buffer.pkl").is_file()
