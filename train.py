@@ -37,6 +37,7 @@ import gymnasium as gym
 import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
+from agents.evaluation import atomic_write_text
 
 ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
@@ -221,7 +222,7 @@ def main(argv: list[str] | None = None) -> Path:
     gym.spec(config["env"])  # a clear error for an unknown id before any process starts
     args.output.mkdir(parents=True, exist_ok=True)
     if not args.resume:
-        atomic_write(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+        atomic_write_text(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:
         handle.write(shlex.join([sys.executable, *(sys.argv if argv is None else
                                                    ["train.py", *argv])]) + "\n")
@@ -272,12 +273,6 @@ def main(argv: list[str] | None = None) -> Path:
     vec_env.close()
     print(f"trained {model.num_timesteps} steps; model: {final}")
     return final
-
-
-def atomic_write(path: Path, text: str) -> None:
-    temporary = path.with_suffix(path.suffix + ".tmp")
-    temporary.write_text(text, encoding="utf-8")
-    os.replace(temporary, path)
 
 
 if __name__ == "__main__":

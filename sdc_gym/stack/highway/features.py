@@ -44,7 +44,7 @@ SINCE_CHANGE_SCALE_S = 10.0
 RADIUS_SCALE_M = 500.0
 OFFSET_LIMIT = 3.0
 REL_SPEED_LIMIT = 2.0
-SPEED_LIMIT = 1.2
+SPEED_RATIO_MAX = 1.2  # the speed entry's upper bound (x cruise speed)
 
 
 class BehaviorFeatures:
@@ -64,7 +64,7 @@ class BehaviorFeatures:
         low = np.zeros(self.size, dtype=np.float32)
         high = np.ones(self.size, dtype=np.float32)
         n = lane_count
-        high[0] = SPEED_LIMIT
+        high[0] = SPEED_RATIO_MAX
         low[1 + 2 * n], high[1 + 2 * n] = -OFFSET_LIMIT, OFFSET_LIMIT
         per_lane = 7 + 2 * n
         for lane in range(n):
@@ -90,7 +90,7 @@ class BehaviorFeatures:
         n = self.lane_count
         target = executor.target_lane if executor.target_lane >= 0 else world.ego_lane
         values = [0.0] * self.size
-        values[0] = min(v / CRUISE_SPEED_MPS, SPEED_LIMIT)
+        values[0] = min(v / CRUISE_SPEED_MPS, SPEED_RATIO_MAX)
         values[1 + world.ego_lane] = 1.0
         values[1 + n + target] = 1.0
         offset = (world.ego_d - world.lane_center(target)) / world.lane_width
