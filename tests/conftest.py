@@ -19,3 +19,18 @@ def original_highway():
     if not HIGHWAY_MAP_FILE.is_file():
         pytest.fail(f"the original map is expected at {HIGHWAY_MAP_FILE}")
     return load_highway_map(HIGHWAY_MAP_FILE)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def sb3_log_folder(tmp_path_factory):
+    """stable-baselines3 makes a fresh SB3-<date> folder in the system temp directory on
+    every ``learn()`` without a TensorBoard folder; keep those inside pytest's own."""
+    import os
+
+    previous = os.environ.get("SB3_LOGDIR")
+    os.environ["SB3_LOGDIR"] = str(tmp_path_factory.mktemp("sb3_logs"))
+    yield
+    if previous is None:
+        del os.environ["SB3_LOGDIR"]
+    else:
+        os.environ["SB3_LOGDIR"] = previous
