@@ -4,6 +4,7 @@
     python evaluate.py --agents lane_keeping --episodes 5 --laps 2 --workers 2
     python evaluate.py --seeds 3 5 8         # these seeds instead of --seed + --episodes
     python evaluate.py --config configs/highway_dense_traffic.yaml --output results/dense
+    python evaluate.py --map ../shared/data/udacity/path_planning/highway_map.csv  # original map
     python evaluate.py --endurance 50        # 50 laps in ONE episode, driving on after incidents
     python evaluate.py --agent "external:./path_planning" --planner-cwd build \
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
@@ -121,6 +122,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
     parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
+    parser.add_argument("--map", default=None, metavar="NAME_OR_FILE",
+                        help="highway map: a built-in name (default, oval) or a file in the "
+                             "original x y s dx dy format, e.g. the Udacity highway_map.csv "
+                             "(overrides the config's)")
     parser.add_argument("--episodes", type=int, default=None,
                         help=f"episodes (seeds) per agent (default {DEFAULT_EPISODES}, "
                              "1 with --endurance)")
@@ -174,6 +179,11 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
     """The env id and config of the run: the YAML's, then the command line's overrides."""
     config_env, env_config = load_config(args.config)
     env_id = args.env or config_env or DEFAULT_ENV
+    if args.map is not None:
+        if env_id in TRACK_ENVS:
+            raise SystemExit(f"--map is for the highway envs; {env_id} takes its track from "
+                             "the config's 'track' key")
+        env_config["map"] = args.map
     if args.endurance is not None:
         env_config["laps"] = args.endurance
         env_config["terminate_on_collision"] = False

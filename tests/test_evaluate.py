@@ -88,6 +88,19 @@ def test_endurance_config_counts_collisions_and_allows_the_time():
     assert "terminate_on_collision" not in config
 
 
+def test_map_option_overrides_the_config_and_names_bad_maps(tmp_path, monkeypatch):
+    from tests.conftest import HIGHWAY_MAP_FILE
+
+    _, config = evaluate.env_settings(evaluate.parse_args(
+        ["--config", OVAL, "--map", str(HIGHWAY_MAP_FILE)]))
+    assert config["map"] == str(HIGHWAY_MAP_FILE) and config["traffic"] == {"car_count": 8}
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit, match=r"neither a built-in \(default, oval\) nor an existing"):
+        evaluate.main(["--map", "no_such_map.csv", "--agents", "lane_keeping"])
+    with pytest.raises(SystemExit, match="--map is for the highway envs"):
+        evaluate.main(["--config", str(CONFIGS / "track_loop.yaml"), "--map", "oval"])
+
+
 def test_seed_options():
     assert evaluate.parse_args([]).seeds == [0, 1, 2]
     assert evaluate.parse_args(["--seed", "4", "--episodes", "2"]).seeds == [4, 5]
