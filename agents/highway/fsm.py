@@ -70,16 +70,23 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 
 from sdc_gym.stack.highway.behavior import (
+    BRAKE_CURVE_DECAY_PER_M,
+    BRAKE_CURVE_GAIN_PCT_PER_M,
+    BRAKE_CURVE_OFFSET_PCT,
     GENTLE_ACCELERATION,
     LAUNCH_ACCELERATION,
     MAX_BRAKING,
     NORMAL_ACCELERATION,
+    SAFETY_GAP_MIN_M,
+    SAFETY_HORIZON_S,
     STEP,
     BehaviorDecision,
 )
+from sdc_gym.stack.highway.behavior import braking_percent as seed_braking_percent
+from sdc_gym.stack.highway.behavior import safety_gap_m as seed_safety_gap_m
 from sdc_gym.stack.highway.world_model import LaneView, WorldModel
 
 MPH = 0.44704  # m/s per mph
@@ -228,13 +235,13 @@ class FSMParameters:
     lane_change_done_tolerance_m: float = 0.5
     advance_speed_factor: float = 1.05
     adapt_after_advance_lane_change: bool = True
-    brake_curve_gain_pct_per_m: float = 13.67303
-    brake_curve_decay_per_m: float = 0.08660915
-    brake_curve_offset_pct: float = 55.76378
+    brake_curve_gain_pct_per_m: float = BRAKE_CURVE_GAIN_PCT_PER_M
+    brake_curve_decay_per_m: float = BRAKE_CURVE_DECAY_PER_M
+    brake_curve_offset_pct: float = BRAKE_CURVE_OFFSET_PCT
     hard_braking_fraction: float = 0.8
     push_from_behind_m: float = 10.0
-    safety_gap_min_m: float = 11.0
-    safety_horizon_s: float = 3.0
+    safety_gap_min_m: float = SAFETY_GAP_MIN_M
+    safety_horizon_s: float = SAFETY_HORIZON_S
     far_lane_ahead_m: float = 13.0
     check_far_lane_behind: bool = True
     double_target_clear_m: float = 50.0
@@ -247,7 +254,6 @@ class FSMParameters:
     abort_gap_m: float = 8.0
     abort_window_m: float = 2.0
     merge_rate_mps: float = 0.3
-    _brake_scale: float = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_speed_mps <= SPEED_LIMIT_MPS:
@@ -256,9 +262,6 @@ class FSMParameters:
             raise ValueError("cruise_speed_mps must be in (0, max_speed_mps]")
         if self.brake_curve_decay_per_m <= 0.0:
             raise ValueError("brake_curve_decay_per_m must be > 0")
-        object.__setattr__(
-            self, "_brake_scale", self.brake_curve_gain_pct_per_m / self.brake_curve_decay_per_m
-        )
 
     @classmethod
     def for_style(cls, style: DrivingStyle, **overrides: object) -> FSMParameters:
@@ -277,14 +280,13 @@ class FSMParameters:
 
     def braking_percent(self, gap_m: float) -> float:
         """p(d): % of the lead car's speed to drive at, ``gap_m`` behind it (0 to 100)."""
-        p = self._brake_scale * (1.0 - math.exp(-self.brake_curve_decay_per_m * gap_m))
-        p -= self.brake_curve_offset_pct
-        return 0.0 if p < 0.0 else (100.0 if p > 100.0 else p)
+        return seed_braking_percent(gap_m, self.brake_curve_gain_pct_per_m,
+                                    self.brake_curve_decay_per_m, self.brake_curve_offset_pct)
 
     def safety_gap_m(self, behind_speed_mps: float, ego_speed_mps: float) -> float:
         """The gap a car behind in a target lane needs: its 3 s projection plus 11 m."""
-        g = self.safety_horizon_s * (behind_speed_mps - ego_speed_mps) + self.safety_gap_min_m
-        return g if g > self.safety_gap_min_m else self.safety_gap_min_m
+        return seed_safety_gap_m(behind_speed_mps, ego_speed_mps, self.safety_gap_min_m,
+                                 self.safety_horizon_s)
 
 
 class FSMBehavior:
@@ -552,10 +554,7 @@ class FSMBehavior:
         """The lane's car behind is further than ``least`` and than its safety gap."""
         p = self._params
         gap = lane.behind_gap
-        if gap <= least:
-            return False
-        need = p.safety_horizon_s * (lane.behind_speed - v) + p.safety_gap_min_m
-        return gap > need
+        return gap > least and gap > p.safety_gap_m(lane.behind_speed, v)
 
     def _merge_ok(self, lanes: tuple[LaneView, ...], n: int, cur: int, t: int, v: float) -> bool:
         """Merging from ``cur`` into ``t`` nearer the middle: the far lane's cars won't."""

@@ -7,6 +7,7 @@ and changes speed toward ``target_speed`` at no more than ``acceleration``.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -18,6 +19,35 @@ NORMAL_ACCELERATION = 0.002 / STEP**2     # 5.0 m/s^2
 LAUNCH_ACCELERATION = 0.0039 / STEP**2    # 9.75 m/s^2, steering muted
 MAX_BRAKING = 0.003368 / STEP**2          # 8.42 m/s^2
 GENTLE_ACCELERATION = 0.001 / STEP**2     # 2.5 m/s^2
+
+# The seed's short-range braking curve p(d) = (gain / decay) (1 - exp(-decay d)) - offset, in
+# % of the lead car's speed: 0 at 5 m, 80 at 22.7 m, 100 at 49.8 m (centre-to-centre gaps).
+BRAKE_CURVE_GAIN_PCT_PER_M = 13.67303
+BRAKE_CURVE_DECAY_PER_M = 0.08660915
+BRAKE_CURVE_OFFSET_PCT = 55.76378
+# The seed's safety gap to a car behind in a target lane: its 3 s projection plus 11 m.
+SAFETY_GAP_MIN_M = 11.0
+SAFETY_HORIZON_S = 3.0
+
+
+def braking_percent(gap_m: float, gain_pct_per_m: float = BRAKE_CURVE_GAIN_PCT_PER_M,
+                    decay_per_m: float = BRAKE_CURVE_DECAY_PER_M,
+                    offset_pct: float = BRAKE_CURVE_OFFSET_PCT) -> float:
+    """p(d): the % of the lead car's speed to drive at, ``gap_m`` behind it, in [0, 100].
+
+    The seed fitted this curve to a train-braking profile: the closer the lead, the larger
+    the share of its speed to give up, so the gap opens again before it closes."""
+    p = gain_pct_per_m / decay_per_m * (1.0 - math.exp(-decay_per_m * gap_m)) - offset_pct
+    return 0.0 if p < 0.0 else (100.0 if p > 100.0 else p)
+
+
+def safety_gap_m(behind_speed_mps: float, ego_speed_mps: float,
+                 min_gap_m: float = SAFETY_GAP_MIN_M,
+                 horizon_s: float = SAFETY_HORIZON_S) -> float:
+    """The gap a car behind in a target lane needs: where it will be after ``horizon_s`` at
+    constant speeds, plus ``min_gap_m`` (never less than ``min_gap_m``)."""
+    g = horizon_s * (behind_speed_mps - ego_speed_mps) + min_gap_m
+    return g if g > min_gap_m else min_gap_m
 
 
 @dataclass(frozen=True)

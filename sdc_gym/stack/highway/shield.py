@@ -32,7 +32,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from sdc_gym.stack.highway.behavior import MAX_BRAKING, NORMAL_ACCELERATION
+from sdc_gym.stack.highway.behavior import (
+    BRAKE_CURVE_DECAY_PER_M,
+    BRAKE_CURVE_GAIN_PCT_PER_M,
+    BRAKE_CURVE_OFFSET_PCT,
+    MAX_BRAKING,
+    NORMAL_ACCELERATION,
+    SAFETY_GAP_MIN_M,
+    SAFETY_HORIZON_S,
+    braking_percent,
+    safety_gap_m,
+)
 from sdc_gym.stack.highway.world_model import LaneView, WorldModel
 
 
@@ -43,11 +53,11 @@ class ShieldParameters:
     brake_range_m: float = 30.0
     approach_gain_per_s: float = 1.0
     hard_braking_fraction: float = 0.8
-    brake_curve_gain_pct_per_m: float = 13.67303
-    brake_curve_decay_per_m: float = 0.08660915
-    brake_curve_offset_pct: float = 55.76378
-    safety_gap_min_m: float = 11.0
-    safety_horizon_s: float = 3.0
+    brake_curve_gain_pct_per_m: float = BRAKE_CURVE_GAIN_PCT_PER_M
+    brake_curve_decay_per_m: float = BRAKE_CURVE_DECAY_PER_M
+    brake_curve_offset_pct: float = BRAKE_CURVE_OFFSET_PCT
+    safety_gap_min_m: float = SAFETY_GAP_MIN_M
+    safety_horizon_s: float = SAFETY_HORIZON_S
     min_ahead_m: float = 20.0
     min_change_radius_m: float = 500.0
     far_lane_watch_m: float = 20.0
@@ -82,14 +92,12 @@ class SafetyShield:
 
     def __init__(self, params: ShieldParameters | None = None) -> None:
         self.params = params or ShieldParameters()
-        p = self.params
-        self._curve_scale = p.brake_curve_gain_pct_per_m / p.brake_curve_decay_per_m
 
     def braking_fraction(self, gap_m: float) -> float:
         """p(gap) / 100: the fraction of the lead's speed to drive at, ``gap_m`` behind it."""
         p = self.params
-        pct = self._curve_scale * (1.0 - math.exp(-p.brake_curve_decay_per_m * gap_m))
-        return min(max(pct - p.brake_curve_offset_pct, 0.0), 100.0) * 0.01
+        return braking_percent(gap_m, p.brake_curve_gain_pct_per_m, p.brake_curve_decay_per_m,
+                               p.brake_curve_offset_pct) * 0.01
 
     def lead(self, world: WorldModel, target_lane: int) -> tuple[float, float]:
         """Gap and speed of the nearest car ahead in the lanes from the ego's to the target."""
@@ -117,9 +125,8 @@ class SafetyShield:
     def safe_behind(self, view: LaneView, ego_speed: float) -> bool:
         """The lane's car behind is beyond the seed's safety gap."""
         p = self.params
-        need = max(p.safety_gap_min_m,
-                   p.safety_horizon_s * (view.behind_speed - ego_speed) + p.safety_gap_min_m)
-        return view.behind_gap > need
+        return view.behind_gap > safety_gap_m(view.behind_speed, ego_speed,
+                                              p.safety_gap_min_m, p.safety_horizon_s)
 
     def safe_ahead(self, view: LaneView, ego_speed: float) -> bool:
         """The lane's car ahead leaves room for the change at the current speeds."""
