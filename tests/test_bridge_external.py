@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import shlex
 import socket
+import subprocess
 import sys
 import time
 from pathlib import Path
@@ -240,3 +241,33 @@ def test_evaluate_reports_external_planners_in_the_same_table(tmp_path, capsys):
         output / "planner_logs" / logs[1]).read_text()
     out = capsys.readouterr().out
     assert "ended early, planner_died" in out and "external:" in out
+
+
+def test_no_planner_outlives_a_parent_killed_without_warning(tmp_path):
+    """``kill -9`` on the process that started a planner: nobody calls ``stop()``, and the
+    watchdog beside the planner ends its group (the planner and the child it forked)."""
+    log = tmp_path / "planner.log"
+    parent_code = (
+        "import sys, time\n"
+        "from sdc_gym.bridge.process import PlannerProcess\n"
+        f"planner = PlannerProcess({planner_command('--fault', 'never_listen')!r}, "
+        f"log_path={str(log)!r})\n"
+        "planner.start()\n"
+        "print(planner.pid, flush=True)\n"
+        "time.sleep(60)\n")
+    parent = subprocess.Popen([sys.executable, "-c", parent_code], stdout=subprocess.PIPE,
+                              text=True, cwd=Path(__file__).resolve().parents[1])
+    try:
+        planner_pid = int(parent.stdout.readline())
+        deadline = time.monotonic() + 10.0
+        while "child " not in (log.read_text() if log.exists() else ""):
+            assert time.monotonic() < deadline, "the planner never started its child"
+            time.sleep(0.05)
+        child = int(log.read_text().split("child ")[1].split()[0])
+        assert not process_gone(planner_pid, wait_s=0.3)  # running while its parent lives
+        parent.kill()
+        parent.wait()
+        assert process_gone(planner_pid) and process_gone(child)
+    finally:
+        parent.kill()
+        parent.stdout.close()

@@ -5,7 +5,9 @@ simulator disconnects, so each episode gets a fresh process. It runs in its own 
 (process group) in the planner's working directory, the way ``cd DIR && COMMAND`` would
 (they read their map from a path relative to it). Its standard output and error go to one
 log file. :meth:`PlannerProcess.stop` signals the whole group, so a planner started
-through a shell script or one that forks leaves nothing behind.
+through a shell script or one that forks leaves nothing behind; and a small watchdog
+(:mod:`sdc_gym.bridge.reaper`) does the same if the process that started the planner is
+killed before it can call ``stop()``.
 
 The port: a command containing ``{port}`` (e.g. ``python planner.py --port {port}``) gets
 a free port picked here, so episodes can run in parallel; otherwise the planner listens
@@ -19,6 +21,7 @@ import shlex
 import signal
 import socket
 import subprocess
+import sys
 import tempfile
 from collections.abc import Sequence
 from pathlib import Path
@@ -30,6 +33,7 @@ from sdc_gym.bridge.protocol import DEFAULT_PORT
 PORT_PLACEHOLDER: Final = "{port}"
 STOP_GRACE_S: Final = 2.0  # between SIGTERM to the group and SIGKILL
 LOG_TAIL_LINES: Final = 12  # lines of the planner's output quoted in fault messages
+REAPER_SCRIPT: Final = Path(__file__).with_name("reaper.py")  # run as a script: stdlib only
 
 
 def free_port(host: str = "127.0.0.1") -> int:
@@ -74,6 +78,7 @@ class PlannerProcess:
         self.cwd = Path(cwd) if cwd is not None else Path.cwd()
         self.log_path = Path(log_path) if log_path is not None else None
         self._popen: subprocess.Popen[bytes] | None = None
+        self._reaper: subprocess.Popen[bytes] | None = None
         self._log: IO[bytes] | None = None
         self._stopped = False
 
@@ -114,6 +119,10 @@ class PlannerProcess:
             raise PlannerNotFound(
                 f"cannot start the planner {self.command_line!r} in {self.cwd}: "
                 f"{error.strerror or error}") from None
+        self._reaper = subprocess.Popen(
+            [sys.executable, str(REAPER_SCRIPT), str(self._popen.pid), str(os.getpid())],
+            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+            start_new_session=True)
 
     def exit_code(self) -> int | None:
         """The planner's exit status once it has exited (negative: killed by that signal)."""
@@ -168,6 +177,10 @@ class PlannerProcess:
                 pass
             _signal_group(group, signal.SIGKILL)  # children that outlived their parent
             popen.wait()
+        reaper, self._reaper = self._reaper, None
+        if reaper is not None:  # its planner is gone: nothing left to watch
+            reaper.terminate()
+            reaper.wait()
         self._close_log()
 
     def _close_log(self) -> None:
