@@ -91,7 +91,7 @@ def test_a_lap_through_the_socket_is_the_in_process_planners_lap(tmp_path):
             break
     in_process = info["summary"]
     assert via_socket["termination_reason"] == "laps_completed"
-    assert in_process["incidents"]["speed"] == 2  # there is something to compare
+    assert in_process["incidents"]["speed"] >= 1  # there is something to compare
     assert {key: via_socket[key] for key in SUMMARY_KEYS} == {
         key: in_process[key] for key in SUMMARY_KEYS}
     assert via_socket["planner_exchanges"] == via_socket["env_steps"] == steps

@@ -8,9 +8,13 @@ original") and how this model does it:
 * **Speeds like the original**: a car spawned ahead of the ego car wants 40 to 50 mph, one
   spawned behind it 50 to 60 mph (uniform), so slow cars wait ahead and fast cars come up
   from behind.
-* **Recycling**: a car more than ``spawn_range`` (200 m, along s, modular) from the ego is
-  respawned on the *other* side of the ego (it fell behind: ahead, slow; it ran away:
-  behind, fast), ``respawn_distance`` ahead of or behind it, a few per decision.
+* **Recycling like the original**: a car more than ``spawn_range`` (200 m, along s,
+  modular) from the ego is respawned near it, a few per decision. As in the original's
+  ``CarAIControl.Spawn`` a fair coin picks the side: ahead of the ego (the original: 4 or 5
+  map waypoints past the ego's nearest one, about 135-210 m on its map; here
+  ``respawn_ahead``, 135-190 m, inside the recycling range) with a desired speed of 40-50
+  mph, or behind it (2 or 3 waypoints back: ``respawn_behind``, 60-135 m) with 50-60 mph.
+  So cars keep coming up from behind all the time, whichever way the ego left them.
 * **Lane changes only into a clear gap**: the target lane must be free within
   ``+-lane_change_clearance`` (20 m) in s for ``lane_change_sustain`` seconds, then the car
   moves over in ``lane_change_duration`` seconds on a minimum-jerk (quintic) profile.
@@ -64,8 +68,8 @@ lane per decision (the lowest slot index): two cars merging into one lane from b
 at the same instant would not have seen each other in their checks; the other one retries
 at the next decision and then does see the first.
 
-Respawn rule: random candidate spots (lane, s) ``respawn_distance`` from the ego, on the
-side opposite to where the car left (the other side if that fails); a spot is taken only
+Respawn rule: random candidate spots (lane, s) in ``respawn_ahead`` or ``respawn_behind``
+from the ego, on the side the coin picked (the other side if no spot fits); a spot is taken only
 if the bumper gaps to the nearest objects ahead and behind in that lane are at least
 ``spawn_min_gap`` and the follower (a car or the ego) would not find the newcomer inside
 its IDM desired gap (so it brakes by at most its ``a_max``); the newcomer starts at its
@@ -115,8 +119,10 @@ class TrafficConfig:
             widening by itself if the cars do not fit.
         spawn_range: m along s (modular); a car further from the ego is recycled. Capped at
             0.45 of the loop length on short loops.
-        respawn_distance: (min, max) m along s from the ego where recycled cars reappear;
-            max is capped at ``spawn_range - 10``.
+        respawn_ahead, respawn_behind: (min, max) m along s from the ego where a recycled
+            car reappears ahead of it or behind it (both capped at ``spawn_range - 10``).
+        respawn_ahead_probability: chance that a recycled car reappears ahead (the
+            original: a fair coin).
         respawn_per_decision: at most this many cars are recycled per decision instant
             (the farthest first): "a few at a time".
         spawn_min_gap: m, smallest bumper gap to the neighbours ahead and behind in the
@@ -161,7 +167,9 @@ class TrafficConfig:
     car_count: int = 12
     density: float = 1.0
     spawn_range: float = 200.0
-    respawn_distance: tuple[float, float] = (60.0, 180.0)
+    respawn_ahead: tuple[float, float] = (135.0, 190.0)
+    respawn_behind: tuple[float, float] = (60.0, 135.0)
+    respawn_ahead_probability: float = 0.5
     respawn_per_decision: int = 2
     spawn_min_gap: float = 8.0
     lane_change_clearance: float = 20.0
@@ -192,8 +200,12 @@ class TrafficConfig:
             (self.car_count >= 0, "car_count must be >= 0"),
             (self.density > 0, "density must be > 0"),
             (self.spawn_range > 20, "spawn_range must be > 20 m"),
-            (0 <= self.respawn_distance[0] < self.respawn_distance[1],
-             "respawn_distance must be (min, max) with 0 <= min < max"),
+            (0 <= self.respawn_ahead[0] < self.respawn_ahead[1],
+             "respawn_ahead must be (min, max) with 0 <= min < max"),
+            (0 <= self.respawn_behind[0] < self.respawn_behind[1],
+             "respawn_behind must be (min, max) with 0 <= min < max"),
+            (0.0 <= self.respawn_ahead_probability <= 1.0,
+             "respawn_ahead_probability must be in [0, 1]"),
             (self.respawn_per_decision >= 1, "respawn_per_decision must be >= 1"),
             (self.decision_period >= 1, "decision_period must be >= 1"),
             (self.lane_change_duration > 0, "lane_change_duration must be > 0"),
@@ -297,8 +309,12 @@ class HighwayTraffic:
         self._lanes = int(road.lane_count)
         self._lane_width = float(road.lane_width)
         self._range = min(config.spawn_range, 0.45 * self._loop)
-        self._respawn_lo = min(config.respawn_distance[0], 0.5 * self._range)
-        self._respawn_hi = min(config.respawn_distance[1], self._range - 10.0)
+        # Respawn bands (m from the ego), inside the recycling range even on a short loop.
+        bands = []
+        for lo, hi in (config.respawn_ahead, config.respawn_behind):
+            hi = min(hi, self._range - 10.0)
+            bands.append((lo if lo < hi else 0.5 * hi, hi))
+        self._respawn_bands = tuple(bands)
         self._decision_dt = config.decision_period * self.dt
         self._type_p = spawn_probabilities(config.vehicle_mix)
         self._lane_ids = np.arange(self._lanes)
@@ -993,11 +1009,15 @@ class HighwayTraffic:
         for i in idx:
             placed = np.ones(self.n, dtype=bool)
             placed[i] = False
-            # It fell behind: reappear ahead (slow); it ran away: reappear behind (fast).
-            side = 1.0 if rel[i] < 0.0 else -1.0
-            dist = rng.uniform(self._respawn_lo, self._respawn_hi, size=2 * _SPAWN_CANDIDATES)
-            dist[_SPAWN_CANDIDATES:] *= -1.0  # fall back to the other side
-            if self._place(int(i), placed, rng, side * dist):
+            # The original's coin: ahead (slow) or behind (fast), whatever side it left.
+            ahead = rng.random() < self.config.respawn_ahead_probability
+            (lo_a, hi_a), (lo_b, hi_b) = self._respawn_bands
+            spots_ahead = rng.uniform(lo_a, hi_a, size=_SPAWN_CANDIDATES)
+            spots_behind = -rng.uniform(lo_b, hi_b, size=_SPAWN_CANDIDATES)
+            # The picked side's spots first, then the other side's (no room on the first).
+            offsets = np.concatenate((spots_ahead, spots_behind) if ahead
+                                     else (spots_behind, spots_ahead))
+            if self._place(int(i), placed, rng, offsets):
                 self.ids[i] = self._next_id
                 self._next_id += 1
                 moved = True
