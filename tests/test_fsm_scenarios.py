@@ -40,13 +40,13 @@ class Scene:
 
     ego_lane: int = 1
     ego_speed: float = 20.0
-    cars: list[list[float]] = field(default_factory=list)  # [lane, gap, speed]
+    cars: list[list[float]] = field(default_factory=list)  # [lane, gap, speed, d_rate]
     time: float = 0.0
     ego_d: float | None = None  # None: the ego lane's centre
     road_radius: float = math.inf
 
-    def add(self, lane: int, gap: float, speed: float) -> Scene:
-        self.cars.append([lane, gap, speed])
+    def add(self, lane: int, gap: float, speed: float, d_rate: float = 0.0) -> Scene:
+        self.cars.append([lane, gap, speed, d_rate])
         return self
 
     def advance(self, dt: float) -> None:
@@ -62,7 +62,7 @@ class Scene:
         for lane in range(LANES):
             ahead = (math.inf, 0.0, -1)
             behind = (math.inf, 0.0, -1)
-            for i, (car_lane, gap, speed) in enumerate(self.cars):
+            for i, (car_lane, gap, speed, *_) in enumerate(self.cars):
                 if car_lane != lane:
                     continue
                 if gap > 0 and gap < ahead[0]:
@@ -72,9 +72,10 @@ class Scene:
             views.append(
                 LaneView(lane, ahead[0], ahead[1], ahead[2], behind[0], behind[1], behind[2])
             )
-        for i, (car_lane, gap, speed) in enumerate(self.cars):
+        for i, (car_lane, gap, speed, *rest) in enumerate(self.cars):
+            d_rate = rest[0] if rest else 0.0  # cars may be given as [lane, gap, speed]
             d = (car_lane + 0.5) * WIDTH
-            tracked.append(TrackedCar(i, 1000.0 + gap, d, speed, 0.0, int(car_lane), gap))
+            tracked.append(TrackedCar(i, 1000.0 + gap, d, speed, d_rate, int(car_lane), gap))
         gaps = [v.ahead_gap for v in views]
         best = max(gaps)
         preferred = (
@@ -527,16 +528,28 @@ def test_never_commands_above_49_83_mph():
         assert cap / MPH < 49.83
 
 
-def test_no_merge_into_middle_beside_a_far_lane_car_either_style():
-    """A far-lane car within 20 m either way may take the middle lane at the same time
-    (traffic merges when the lane is clear by +-20 m): both styles wait."""
+def test_no_merge_into_middle_beside_a_far_lane_car_that_may_merge_either_style():
+    """The seed checks the far lane for "potential lane-changing vehicles" before merging
+    into the middle lane. Traffic merges when the lane is clear by +-20 m, so a far-lane car
+    within 20 m either way that may move over makes both styles wait: one held up by a car
+    close ahead in its own lane that is no faster, or one already moving toward the middle.
+    One with open road ahead has no reason to move over, and one 21 m away is not beside."""
+    def scene() -> Scene:  # the ego in lane 0 behind a slow car, the middle lane empty
+        return Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0)
+
     for style in DrivingStyle:
-        for far_gap in (-12.0, 0.5, 15.0):
-            scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0).add(2, far_gap, 20.0)
-            fsm = cruising(style, lane=0)
-            assert decide_at(fsm, scene, 30.0).target_lane == 0, (style, far_gap)
-        scene = Scene(ego_lane=0, ego_speed=20.0).add(0, 30.0, 16.0).add(2, -21.0, 20.0)
-        assert decide_at(cruising(style, lane=0), scene, 30.0).target_lane == 1, style
+        for far_gap in (-12.0, 15.0):
+            held_up = scene().add(2, far_gap, 20.0).add(2, far_gap + 30.0, 18.0)
+            moving_over = scene().add(2, far_gap, 20.0, d_rate=-0.5)
+            open_road = scene().add(2, far_gap, 20.0)
+            for label, case, lane in (("held up", held_up, 0), ("moving", moving_over, 0),
+                                      ("open road", open_road, 1)):
+                decision = decide_at(cruising(style, lane=0), case, 30.0)
+                assert decision.target_lane == lane, (style, far_gap, label)
+        alongside = scene().add(2, 0.5, 20.0)  # the seed's own rule: far car ahead < 13 m
+        assert decide_at(cruising(style, lane=0), alongside, 30.0).target_lane == 0, style
+        not_beside = scene().add(2, -21.0, 20.0).add(2, 25.0, 18.0)  # held up, 21 m back
+        assert decide_at(cruising(style, lane=0), not_beside, 30.0).target_lane == 1, style
 
 
 def test_lane_change_aborted_when_a_car_enters_the_target_lane_beside():

@@ -43,9 +43,14 @@ Where this implementation goes beyond the seed, and why
       Adapt) at the lead's speed ``u``, and a far lead is approached at a deceleration of
       ``gain x`` the closing speed. A lead held this way counts as blocking for the
       tactical rules even outside ``mid_range_m``.
-    * **Far-lane cars beside the ego.** Traffic merges into a lane that is clear by +-20 m
-      of it, so merging into the middle lane waits while a far-lane car is within
-      ``far_lane_merge_watch_m`` either way (both styles): both could move at once.
+    * **Far-lane cars beside the ego.** The seed checks the far lane for "potential
+      lane-changing vehicles" before merging into the middle lane. Traffic merges into a
+      lane that is clear by +-20 m of it, so both could move at once: merging into the
+      middle lane waits while a far-lane car within ``far_lane_merge_watch_m`` either way
+      may move over (both styles): one already moving toward the middle lane, or one held
+      up by a car close ahead in its own lane that is no faster. A far-lane car with open
+      road ahead has no reason to change lanes and does not hold the ego back (waiting
+      for every far-lane car beside cost Bold 0.7 mph; see benchmarks/study_fsm_speed.py).
     * **Aborting a lane change.** If a car appears in the target lane beside the ego (or
       closes in behind faster than the safety gap allows) while the ego is still on its
       side of the lane line, the ego goes back to its lane (once per lane change).
@@ -207,7 +212,10 @@ class FSMParameters:
             curve at its edge (0 disables the cap: the seed's step from the mode's goal
             to ``p(range)`` at the edge; see "Following" in the module docstring).
         far_lane_merge_watch_m: merging into the middle lane, a far-lane car closer than
-            this either way (centre to centre) could be merging too: wait.
+            this either way (centre to centre) that may change lanes too makes the ego
+            wait: one moving toward the middle lane, or one held up (below).
+        far_lane_held_up_m: a far-lane car with a car ahead in its own lane closer than
+            this (centre to centre) and no faster than itself is held up: it may move over.
         abort_gap_m: during a lane change, a car in the target lane closer than this
             either way (or closing on it behind) sends the ego back to its lane, while
             the ego is still within ``abort_window_m`` of the lane it left.
@@ -251,6 +259,7 @@ class FSMParameters:
     double_change_radius_m: float = 3000.0
     approach_gain_per_s: float = 1.0
     far_lane_merge_watch_m: float = 20.0
+    far_lane_held_up_m: float = 60.0
     abort_gap_m: float = 8.0
     abort_window_m: float = 2.0
     merge_rate_mps: float = 0.3
@@ -345,6 +354,7 @@ class FSMBehavior:
 
     # ----------------------------------------------------------------------- policy
     def reset(self) -> None:
+        self._world: WorldModel | None = None  # the cycle's world model, for the lane rules
         self._mode = Mode.LAUNCH
         self._started = False
         self._now = 0.0
@@ -366,6 +376,7 @@ class FSMBehavior:
     def decide(self, world: WorldModel) -> BehaviorDecision:
         p = self._params
         now = world.time
+        self._world = world
         if not self._started:
             self._started = True
             self._target_lane = world.ego_lane
@@ -565,9 +576,32 @@ class FSMBehavior:
         far = lanes[f]
         if far.ahead_gap <= p.far_lane_ahead_m:
             return False
-        if far.ahead_gap < p.far_lane_merge_watch_m or far.behind_gap < p.far_lane_merge_watch_m:
-            return False  # beside us: the traffic's own +-20 m clearance rule lets it merge
+        if self._far_lane_merger_beside(f, t):
+            return False
         return not p.check_far_lane_behind or self._safe_behind(far, v, p.safety_gap_min_m)
+
+    def _far_lane_merger_beside(self, far_lane: int, target: int) -> bool:
+        """A "potential lane-changing vehicle" (the seed) in ``far_lane`` within
+        ``far_lane_merge_watch_m`` of the ego either way: one already moving toward
+        ``target``, or one held up by a car close ahead in its own lane that is no faster
+        (it has a reason to move over). Traffic checks only +-20 m of the target lane, so
+        such a car and the ego could move into the same gap at once; a car with open road
+        ahead has no reason to change lanes and does not hold the ego back."""
+        p = self._params
+        assert self._world is not None  # set by decide(), the only caller's caller
+        cars = self._world.cars
+        toward = 1.0 if target > far_lane else -1.0
+        for car in cars:
+            if car.lane != far_lane or abs(car.gap) >= p.far_lane_merge_watch_m:
+                continue
+            if car.d_rate * toward > p.merge_rate_mps:
+                return True
+            for other in cars:
+                ahead = other.gap - car.gap
+                if (other.lane == far_lane and 0.0 < ahead < p.far_lane_held_up_m
+                        and other.speed <= car.speed):
+                    return True
+        return False
 
     @staticmethod
     def _most_room_first(lanes: tuple[LaneView, ...], n: int, a: int, b: int) -> tuple[int, ...]:
