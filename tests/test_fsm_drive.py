@@ -12,9 +12,10 @@ from tests.conftest import HIGHWAY_MAP_FILE
 
 def test_launch_into_the_original_maps_first_bend_stays_in_lane():
     """The original start (s = 124.9 m) is 25 m before a left bend. Launch drives straight,
-    steering muted; if the path queued during the launch were kept, the car would go on
-    straight for another path length and drift 2.8 m to the right, into the next lane
-    (seed 2: Bold hit the car there after 3 s). The hand-over to Adapt drops that path."""
+    steering muted; if the path queued during the launch were kept as it is, the car would
+    go on straight for another path length and drift 2.8 m to the right, into the next lane
+    (seed 2: Bold hit the car there after 3 s). When steering comes back, the motion layer
+    plans those queued states again, steered, at the same speeds."""
     env = gym.make("sdc_gym/HighwayLoop-v0", config={"map": str(HIGHWAY_MAP_FILE)})
     agent = fsm_agent(env, DrivingStyle.BOLD)
     observation, _ = env.reset(seed=2)

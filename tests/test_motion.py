@@ -241,6 +241,22 @@ def scripted_decisions(t: float, planner: SeedMotionPlanner) -> BehaviorDecision
                             NORMAL_ACCELERATION)
 
 
+def assert_continues(path: np.ndarray, previous: np.ndarray, previous_increments: np.ndarray,
+                     planner: SeedMotionPlanner, resumed: bool) -> None:
+    """The path starts with the rest of the previous one, unchanged; except in the cycle
+    where steering comes back after the launch: then only ``lead + 4`` points are kept and
+    the rest of the unsteered states are planned again, steered, at the same increments."""
+    consumed = planner.consumed
+    rest = len(previous) - consumed
+    if not resumed:
+        np.testing.assert_array_equal(path[:rest], previous[consumed:])
+        return
+    keep = planner.lead + 4
+    np.testing.assert_array_equal(path[:keep], previous[consumed:consumed + keep])
+    np.testing.assert_array_equal(planner.queue[:rest, 5], previous_increments[consumed:])
+    assert not np.array_equal(path[keep:rest], previous[consumed + keep:])
+
+
 def test_path_continues_the_echoed_previous_path_exactly_without_latency():
     env = make_env(latency_steps=0)
     obs, _ = env.reset(seed=0)
@@ -251,30 +267,37 @@ def test_path_continues_the_echoed_previous_path_exactly_without_latency():
     # start increment along the yaw).
     expected = ego[:2] + 0.009 * np.array([math.cos(ego[4]), math.sin(ego[4])])
     np.testing.assert_allclose(previous[0], expected, atol=1e-9)
+    increments, steered, resumptions = planner.queue[:, 5], False, 0
     for _ in range(250):
         obs, _, _, _, info = env.step(previous)
         count = int(obs["previous_path_count"])
-        path = planner.plan(obs, scripted_decisions(info["time"], planner))
-        assert count == len(previous) - 3
-        np.testing.assert_array_equal(path[:count], previous[len(previous) - count:])
-        np.testing.assert_allclose(obs["previous_path"][:count], path[:count], atol=2e-3)
-        previous = path
+        decision = scripted_decisions(info["time"], planner)
+        path = planner.plan(obs, decision)
+        assert count == len(previous) - 3 == len(previous) - planner.consumed
+        resumed = decision.steering and not steered
+        resumptions += resumed
+        assert_continues(path, previous, increments, planner, resumed)
+        np.testing.assert_allclose(obs["previous_path"][:planner.lead + 4],
+                                   path[:planner.lead + 4], atol=2e-3)
+        previous, increments, steered = path, planner.queue[:, 5], decision.steering
+    assert resumptions == 1  # the launch's end
 
 
 def test_path_continues_exactly_with_the_default_latency():
     env = make_env()
     obs, _ = env.reset(seed=0)
     planner = SeedMotionPlanner(env.unwrapped.road, MotionParameters.for_env(env))
-    previous = None
+    previous, increments, steered = None, None, False
     for cycle in range(250):
-        path = planner.plan(obs, scripted_decisions(env.unwrapped.metrics.time, planner))
+        decision = scripted_decisions(env.unwrapped.metrics.time, planner)
+        path = planner.plan(obs, decision)
         if previous is not None:
             # The car consumed some points since (3 per cycle once the first path has
-            # arrived): the path starts with the rest of the previous one, unchanged.
-            consumed = planner.consumed
-            assert consumed == 3 or cycle == 1
-            np.testing.assert_array_equal(path[:len(previous) - consumed], previous[consumed:])
-        previous = path
+            # arrived): the path starts with the rest of the previous one.
+            assert planner.consumed == 3 or cycle == 1
+            assert_continues(path, previous, increments, planner,
+                             decision.steering and not steered)
+        previous, increments, steered = path, planner.queue[:, 5], decision.steering
         obs, *_ = env.step(path)
     assert env.unwrapped.metrics.max_raw_acceleration < 25.0  # no stalled or skipped frame
 
@@ -343,8 +366,8 @@ def test_a_queue_longer_than_its_buffer_grows_it():
     planner = SeedMotionPlanner(env.unwrapped.road,
                                 MotionParameters.for_env(env, path_length=1500))
     previous = None
-    for step in range(5):
-        path = planner.plan(obs, scripted_decisions(step * 0.06, planner))
+    for _ in range(5):
+        path = planner.plan(obs, BehaviorDecision(1, CRUISE, NORMAL_ACCELERATION))
         assert path.shape == (1500, 2)
         np.testing.assert_array_equal(planner.queue[:, :2], path)
         if previous is not None:  # the path continues the previous one exactly

@@ -3,8 +3,7 @@
 Modes (:class:`Mode`)
     * Launch: accelerate straight at the launch rate, steering muted; to Adapt above 40 mph
       (or, beyond the seed, as soon as a lead car is inside the braking range). The
-      hand-over flags a replan: the queued path is straight launch states, and keeping it
-      would mute the steering a path length longer (on the original map, into a bend).
+      motion layer steers the straight launch states still queued at the hand-over.
     * Adapt: follow the car ahead (the braking curve below); to Advance after ``patience_s``
       blocked; to Cruise above 40 mph, centred (+-0.25 m) in a lane clear for 100 m.
     * Advance: close in on the car ahead (1.05 x its speed, 1.10 Bold, at the gentle rate),
@@ -413,13 +412,11 @@ class FSMBehavior:
 
         # Mode transitions: at most one per cycle.
         mode = self._mode
-        launch_ended = False
         if mode is Mode.LAUNCH:
             # A lead inside the braking range ends the launch too: behind a car slower
             # than 40 mph the seed's launch (steering muted) would never end.
             if v > p.low_cruise_speed_mps or ahead < p.calm.brake_range_m:
                 self._enter(Mode.ADAPT, now)
-                launch_ended = True
         elif mode is Mode.ADAPT:
             if ahead >= p.adapt_clear_ahead_m:
                 self._blocked_since = now  # not blocked: patience restarts
@@ -449,9 +446,7 @@ class FSMBehavior:
 
         # Speed.
         vmax = p.max_speed_mps
-        # The queue still holds a path's length of straight launch states; drop them so
-        # steering starts now, not ~20 m later (in a bend, the car would drift across).
-        replan = launch_ended
+        replan = False
         if mode is Mode.LAUNCH:
             goal = p.cruise_speed_mps
             accel = p.launch_acceleration_mps2

@@ -51,6 +51,12 @@ Where this implementation goes beyond the seed's prose, and why
   ``lead + replan_keep`` points so that the new plan joins the path the car is actually
   on. :meth:`MotionParameters.for_env` reads the env's timing. If the car is ever found
   off the queue (the env moved it) the planner starts afresh from the observed pose.
+* **Steering resumes on the queued states.** States planned while the behavior muted
+  the steering (the seed's Launch) run straight for a path's length after the launch
+  ends (about 20 m at 40 mph): where the road bends there, as 25 m after the original
+  map's start, the car would drift across the lane line. When steering comes back, the
+  queue beyond ``lead + replan_keep`` points is planned again with the same increments
+  (the speed profile, and so the acceleration, unchanged) and steering on.
 * Each state also carries its Frenet ``d`` (exact, like ``s``, from one projection per
   batch of new points), so the lane error and the lane-change flag are exact.
 
@@ -175,6 +181,7 @@ class SeedMotionPlanner:
         self._anchor = [math.nan, math.nan]  # the point before the queue's first one
         self._target_d = math.nan
         self._lane_changing = False
+        self._queued_muted = False   # the queue's newest states were planned unsteered
 
     def plan(self, observation: dict[str, Any], decision: BehaviorDecision) -> NDArray[np.float64]:
         """The path to send this cycle, shape ``(m, 2)``, ``m <= path_length``.
@@ -194,13 +201,19 @@ class SeedMotionPlanner:
         # The car consumes `lead` more queued points from the paths already sent before
         # this one arrives; none while it is still waiting for its first path.
         self._lead = min(p.latency_frames, self._cycles * p.frames_per_cycle)
+        replay: list[float] = []  # increments of unsteered states to plan again, steered
         if decision.replan:
             self._truncate(self._lead + p.replan_keep)
+        elif decision.steering and self._queued_muted:
+            keep = self._start + self._lead + p.replan_keep
+            replay = self._buffer[keep:self._stop, _INCREMENT].tolist()
+            self._truncate(self._lead + p.replan_keep)
+        self._queued_muted = not decision.steering
         lane = min(max(int(decision.target_lane), 0), self.road.lane_count - 1)
         self._target_d = (lane + 0.5) * self.road.lane_width
         missing = p.path_length - (self._stop - self._start)
         if missing > 0:
-            self._extend(missing, decision)  # (may move the queue in its buffer)
+            self._extend(missing, decision, replay)  # (may move the queue in its buffer)
         self._cycles += 1
         end = self._end_row()
         self._lane_changing = abs(end[_D] - self._target_d) > p.lane_change_tolerance
@@ -334,8 +347,11 @@ class SeedMotionPlanner:
         aims = [complex(x + aim_d * nx, y + aim_d * ny) for x, y, nx, ny, _ in frames[k:]]
         return frames[:k], aims, frames[-1][4]
 
-    def _extend(self, count: int, decision: BehaviorDecision) -> None:
-        """Append ``count`` states to the queue (the seed's steps 2 to 6).
+    def _extend(self, count: int, decision: BehaviorDecision,
+                replay: list[float] | None = None) -> None:
+        """Append ``count`` states to the queue (the seed's steps 2 to 6); the first ones
+        take their increments from ``replay`` (states planned again) instead of the
+        decision's speed.
 
         Per batch of up to ``batch_points`` new states, one geometry evaluation gives
         the aim points and the reference line (point, normal, curvature) at each new
@@ -366,6 +382,10 @@ class SeedMotionPlanner:
             # else a` is min(a, b) and `b if b > a else a` max(a, b), without the calls.)
             increments = []
             for _ in range(k):
+                if replay:
+                    increment = replay.pop(0)
+                    increments.append(increment)
+                    continue
                 # Arrive at the goal speed with the acceleration easing to zero at a
                 # bounded jerk, a <= sqrt(2 J |dv|): an abrupt end of the seed's rate
                 # shows as jerk in the original's 1 s windows. The seed's rate applies
