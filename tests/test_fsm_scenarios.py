@@ -555,7 +555,7 @@ def test_lane_change_aborted_when_a_car_enters_the_target_lane_beside():
     scene.ego_d = 3.0
     scene.add(1, 3.0, 20.0)
     decision = decide_at(fsm, scene, 30.5)
-    assert decision.target_lane == 0
+    assert decision.target_lane == 0 and decision.replan  # the queued move is dropped
     assert fsm.lane_change_in_progress
 
 

@@ -52,7 +52,8 @@ Where this implementation goes beyond the seed, and why
       for every far-lane car beside cost Bold 0.7 mph; see benchmarks/study_fsm_speed.py).
     * **Aborting a lane change.** If a car appears in the target lane beside the ego (or
       closes in behind faster than the safety gap allows) while the ego is still on its
-      side of the lane line, the ego goes back to its lane (once per lane change).
+      side of the lane line, the ego goes back to its lane (once per lane change), with a
+      replan: the queued path would carry it on toward that car for another second.
 
 Gaps
     The world model's gaps are centre-to-centre s distances, which is also how the seed
@@ -213,8 +214,10 @@ class FSMParameters:
         far_lane_merge_watch_m: merging into the middle lane, a far-lane car closer than
             this either way (centre to centre) that may change lanes too makes the ego
             wait: one moving toward the middle lane, or one held up (below).
-        far_lane_held_up_m: a far-lane car with a car ahead in its own lane closer than
-            this (centre to centre) and no faster than itself is held up: it may move over.
+        far_lane_held_up_s: a far-lane car with a car ahead in its own lane closer than
+            this many seconds at its own speed (centre to centre) and no faster than itself
+            is held up: it may move over (4 s: 88 m at 49 mph, where car following starts
+            to slow a car down).
         abort_gap_m: during a lane change, a car in the target lane closer than this
             either way (or closing on it behind) sends the ego back to its lane, while
             the ego is still within ``abort_window_m`` of the lane it left.
@@ -258,7 +261,7 @@ class FSMParameters:
     double_change_radius_m: float = 3000.0
     approach_gain_per_s: float = 1.0
     far_lane_merge_watch_m: float = 20.0
-    far_lane_held_up_m: float = 60.0
+    far_lane_held_up_s: float = 4.0
     abort_gap_m: float = 8.0
     abort_window_m: float = 2.0
     merge_rate_mps: float = 0.3
@@ -399,8 +402,10 @@ class FSMBehavior:
             ):
                 self._enter(Mode.ADAPT, now)
 
-        if self._changing and not self._aborted and self._must_abort(world, target):
-            # Someone took the gap: back to the lane being left (once per lane change).
+        aborting = self._changing and not self._aborted and self._must_abort(world, target)
+        if aborting:
+            # Someone took the gap: back to the lane being left (once per lane change),
+            # now: the queued path would carry the car on toward them for another second.
             self._target_lane = target = self._origin_lane
             self._aborted = True
 
@@ -446,7 +451,7 @@ class FSMBehavior:
 
         # Speed.
         vmax = p.max_speed_mps
-        replan = False
+        replan = aborting
         if mode is Mode.LAUNCH:
             goal = p.cruise_speed_mps
             accel = p.launch_acceleration_mps2
@@ -591,9 +596,10 @@ class FSMBehavior:
                 continue
             if car.d_rate * toward > p.merge_rate_mps:
                 return True
+            reach = p.far_lane_held_up_s * car.speed
             for other in cars:
                 ahead = other.gap - car.gap
-                if (other.lane == far_lane and 0.0 < ahead < p.far_lane_held_up_m
+                if (other.lane == far_lane and 0.0 < ahead < reach
                         and other.speed <= car.speed):
                     return True
         return False
