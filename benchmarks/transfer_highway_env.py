@@ -7,7 +7,7 @@ Runs ``--episodes`` episodes (seeds 0..N-1, the same for every agent) of highway
 ``highway-fast-v0`` with ``lanes_count: 3`` (our policies see 3 lanes) and otherwise its
 defaults (20 cars, 5 Hz simulation, one meta-action per second, 30 s episodes), for:
 
-* the policy (``--policy kind:path``; default the committed PPO policy when the file
+* the policy (``--policy kind:path``; default the committed DQN policy when the file
   exists), through :mod:`agents.highway_env_adapter` (our world model, features, decision
   executor and safety shield; decisions mapped onto highway-env's meta-actions);
 * highway-env's default agents: always ``IDLE`` (the action its docs and benchmarks use by
