@@ -49,7 +49,7 @@ Where this implementation goes beyond the seed, and why
       may move over (both styles): one already moving toward the middle lane, or one held
       up by a car close ahead in its own lane that is no faster. A far-lane car with open
       road ahead has no reason to change lanes and does not hold the ego back (waiting
-      for every far-lane car beside cost Bold 0.7 mph; see benchmarks/study_fsm_speed.py).
+      for every far-lane car beside had cost Bold 0.7 mph over seeds 0-19).
     * **Aborting a lane change.** If a car appears in the target lane beside the ego (or
       closes in behind faster than the safety gap allows) while the ego is still on its
       side of the lane line, the ego goes back to its lane (once per lane change), with a
