@@ -206,8 +206,8 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
         respawns += int(new.sum())
         ids = traffic.ids.copy()
     assert respawns > 20
-    # The original's coin: both sides, whichever way the cars left (here mostly behind,
-    # while the ego is fast, then ahead while it stands); within the bands (+- the
+    # The original's coin: both sides, whichever way the cars left (they fall behind
+    # while the ego is fast and run away ahead while it stands); within the bands (+- the
     # distance the car and the ego drift apart within the 0.1 s chunk).
     ahead, behind = np.array(reappeared["ahead"]), np.array(reappeared["behind"])
     assert len(ahead) >= 0.25 * respawns and len(behind) >= 0.25 * respawns
