@@ -184,8 +184,9 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
     # Fast (cars fall behind), stopped dead (cars run away, queue behind), slow.
     speeds = np.r_[np.full(600, 30.0), np.zeros(600), np.full(600, 12.0)]  # per 0.1 s
     ids = traffic.ids.copy()
-    respawns = 0
+    respawns = same_side = 0
     reappeared = {"ahead": [], "behind": []}  # s from the ego at the end of the chunk
+    last_rel = relative_s(traffic, traffic.s, road.start_s)
     for smp, ego_s in drive(traffic, road.start_s, ego_d, speeds, 180.0, chunk=5):
         rel = relative_s(traffic, smp.s, ego_s[:, None])
         # Recycling runs at decisions (0.2 s), two cars at most: a car running away at
@@ -194,6 +195,8 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
         renewed = traffic.ids != ids
         for offset in rel[-1, renewed]:
             reappeared["ahead" if offset > 0 else "behind"].append(abs(offset))
+        same_side += int(np.sum(np.sign(rel[-1, renewed]) == np.sign(last_rel[renewed])))
+        last_rel = rel[-1]
         # Newcomers (and everyone) keep clear of each other and of the ego.
         ex, ey, eh = ego_pose(road, ego_s, np.full(len(ego_s), ego_d))
         x = np.column_stack([smp.x, ex])
@@ -211,6 +214,7 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
     # distance the car and the ego drift apart within the 0.1 s chunk).
     ahead, behind = np.array(reappeared["ahead"]), np.array(reappeared["behind"])
     assert len(ahead) >= 0.25 * respawns and len(behind) >= 0.25 * respawns
+    assert same_side >= 0.25 * respawns  # not always on the other side of the ego
     lo, hi = config.respawn_ahead
     assert np.all((ahead > lo - 4.0) & (ahead < hi + 4.0))
     lo, hi = config.respawn_behind
