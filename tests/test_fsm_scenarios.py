@@ -284,6 +284,18 @@ def test_j_pocket_avoidance_double_lane_change():
     assert decide_at(fsm, scene(3001.0), 30.0).target_lane == 0
 
 
+def test_no_double_change_through_a_car_inside_the_hard_braking_gap():
+    """Bold asks 20 m of room in the lane a double change crosses, but while changing that
+    lane's car is a lead: at 21 m the braking curve would demand an emergency stop (below
+    80 % of its speed under 22.7 m), so the change waits; at 24 m it goes."""
+    assert FSMParameters().hard_braking_gap_m == pytest.approx(22.7, abs=0.01)
+    for middle_gap, lane in ((21.0, 2), (24.0, 0)):
+        scene = Scene(ego_lane=2, ego_speed=20.0).add(2, 30.0, 16.0).add(1, middle_gap, 21.0)
+        decision = decide_at(cruising(DrivingStyle.BOLD, lane=2), scene, 30.0)
+        assert decision.target_lane == lane, middle_gap
+        assert decision.acceleration < MAX_BRAKING  # no emergency either way
+
+
 # ------------------------------------------------------------------ rules and modes
 def test_braking_curve_anchors():
     p = FSMParameters()

@@ -126,7 +126,9 @@ class RangeProfile:
         strategic_cooldown_s: least time between lane changes, strategic rules.
         outward_ahead_m: room needed ahead in an outer lane (moving out of the middle).
         inward_ahead_m: room needed ahead in the middle lane (moving into it).
-        double_middle_ahead_m: room needed ahead in the lane crossed by a double change.
+        double_middle_ahead_m: room needed ahead in the lane crossed by a double change
+            (and never less than the hard-braking gap, 22.7 m: while changing, that lane's
+            car ahead is a lead).
         long_range_clear_m: the ego lane's room ahead needed to return to the middle lane.
         early_change_max_gap_m: early lane changes for a lead between ``mid_range_m`` and
             this.
@@ -293,6 +295,16 @@ class FSMParameters:
         """p(d): % of the lead car's speed to drive at, ``gap_m`` behind it (0 to 100)."""
         return seed_braking_percent(gap_m, self.brake_curve_gain_pct_per_m,
                                     self.brake_curve_decay_per_m, self.brake_curve_offset_pct)
+
+    @property
+    def hard_braking_gap_m(self) -> float:
+        """The gap below which the braking curve asks for less than
+        ``hard_braking_fraction`` of the lead's speed (a replan and the maximum braking):
+        22.7 m with the seed's curve. p(d) solved for d."""
+        k = self.brake_curve_decay_per_m
+        rest = 1.0 - ((100.0 * self.hard_braking_fraction + self.brake_curve_offset_pct) * k
+                      / self.brake_curve_gain_pct_per_m)
+        return -math.log(rest) / k if rest > 0.0 else math.inf
 
     def safety_gap_m(self, behind_speed_mps: float, ego_speed_mps: float) -> float:
         """The gap a car behind in a target lane needs: its 3 s projection plus 11 m."""
@@ -639,6 +651,9 @@ class FSMBehavior:
                 return t
         if radius > p.double_change_radius_m:
             clear = p.double_target_clear_m
+            # The lane crossed is a lead lane during the change: a car in it closer than
+            # the hard-braking gap would turn the manoeuvre into an emergency stop.
+            crossed_room = max(prof.double_middle_ahead_m, p.hard_braking_gap_m)
             for t in self._most_room_first(lanes, n, cur - 2, cur + 2):
                 lane = lanes[t]
                 mid = lanes[(cur + t) // 2]
@@ -646,7 +661,7 @@ class FSMBehavior:
                     lane.ahead_gap > ahead
                     and lane.ahead_gap > clear
                     and self._safe_behind(lane, v, clear)
-                    and mid.ahead_gap > prof.double_middle_ahead_m
+                    and mid.ahead_gap > crossed_room
                     and self._safe_behind(mid, v, least)
                 ):
                     return t
