@@ -99,8 +99,7 @@ def _situation(agent, params: FSMParameters) -> str:
         return "boxed in"
     if world.road_radius <= params.single_change_radius_m:
         return "bend"
-    profile = params.active if fsm.mode is Mode.ADVANCE else params.calm
-    if fsm.time_since_lane_change <= profile.tactical_cooldown_s:
+    if fsm.time_since_lane_change <= fsm.profile.tactical_cooldown_s:
         return "cool-down"
     if all(lane.behind_gap <= params.safety_gap_m(lane.behind_speed, v) for lane in roomier):
         return "car behind"

@@ -366,6 +366,12 @@ class FSMBehavior:
         """s since the last lane change began (or since the first cycle)."""
         return self._now - self._last_change_time
 
+    @property
+    def profile(self) -> RangeProfile:
+        """The distances and cool-downs in force: the active profile in Advance, else the
+        calm one (which is the active one for the Bold style)."""
+        return self._params.active if self._mode is Mode.ADVANCE else self._params.calm
+
     # ----------------------------------------------------------------------- policy
     def reset(self) -> None:
         self._world: WorldModel | None = None  # the cycle's world model, for the lane rules
@@ -447,7 +453,7 @@ class FSMBehavior:
         elif v < p.low_cruise_speed_mps or ahead < p.calm.brake_range_m:  # Cruise
             self._enter(Mode.ADAPT, now)
         mode = self._mode
-        prof = p.active if mode is Mode.ADVANCE else p.calm
+        prof = self.profile
 
         # The lead: the ego lane's car ahead, and while changing lanes also the cars ahead
         # in the lanes up to the target one (whichever is nearest).
