@@ -446,10 +446,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
     def _contact_reach(self) -> NDArray[np.float64]:
         """The collision broad phase's reach per car, kept while the cars' sizes stay."""
         traffic = self.traffic
-        if traffic.sizes_version != self._reach_version:
-            self._reach_sq = contact_reach_sq(self.ego_length, self.ego_width, traffic.length,
-                                              traffic.width)
-            self._reach_version = traffic.sizes_version
+        self._reach_sq = contact_reach_sq(self.ego_length, self.ego_width, traffic.length,
+                                          traffic.width)
         assert self._reach_sq is not None
         return self._reach_sq
 

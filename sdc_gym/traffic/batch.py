@@ -1,0 +1,213 @@
+"""The traffic of ``envs`` highway envs at once: state as arrays, kernels over them.
+
+:class:`TrafficBatch` owns the constants (config, road tables), the
+:class:`~sdc_gym.traffic.state.TrafficState` of every env and each env's generator.
+:meth:`TrafficBatch.advance` moves all envs by the same number of physics frames: the
+envs whose decision instant falls on a frame decide together (their rows taken, decided by
+:func:`~sdc_gym.traffic.decisions.decide`, written back), and the motion between
+decisions is evaluated in closed form for all of them
+(:meth:`~sdc_gym.traffic.kinematics.TrafficGeometry.segment`). Envs reset at different
+times have different phases of the decision period, so one advance may hold several
+decision rounds, each for the envs of one phase. Env ``i`` of a batch is exactly a
+single env (a batch of one) with the same generator, frame for frame.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
+from sdc_gym.traffic.decisions import decide
+from sdc_gym.traffic.kinematics import TrafficGeometry
+from sdc_gym.traffic.placement import reset_row, reset_row_to
+from sdc_gym.traffic.state import TrafficState
+from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+
+class TrafficBatch:
+    """Traffic for ``envs`` envs on one :class:`HighwayMap` (see the module docstring).
+
+    Args:
+        road: the highway.
+        config: traffic settings (``None``: the defaults).
+        envs: number of envs.
+        dt: s, the physics step.
+    """
+
+    def __init__(self, road: HighwayMap, config: TrafficConfig | None = None, envs: int = 1,
+                 dt: float = 0.02) -> None:
+        if envs < 1:
+            raise ValueError(f"envs must be >= 1, got {envs}")
+        self.road = road
+        self.config = config = config if config is not None else TrafficConfig()
+        self.dt = float(dt)
+        self.envs = envs
+        self.reference = road.reference
+        self.geometry = TrafficGeometry(road, config, self.dt)
+        self.loop = float(road.length)
+        self.half_loop = 0.5 * self.loop
+        self.loop_0d = np.array(self.loop)
+        self.lanes = int(road.lane_count)
+        self.lane_width = float(road.lane_width)
+        self.lane_ids = np.arange(self.lanes)
+        self.adjacent = np.abs(self.lane_ids[:, None] - self.lane_ids[None, :]) == 1
+        self.range = min(config.spawn_range, 0.45 * self.loop)
+        # Respawn bands (m from the ego), inside the recycling range even on a short loop.
+        bands = []
+        for lo, hi in (config.respawn_ahead, config.respawn_behind):
+            hi = min(hi, self.range - 10.0)
+            bands.append((lo if lo < hi else 0.5 * hi, hi))
+        self.respawn_bands = tuple(bands)
+        self.decision_dt = config.decision_period * self.dt
+        self.type_p = spawn_probabilities(config.vehicle_mix)
+        self.rogue_p = config.rogue_rate / 60.0 * self.decision_dt if config.rogue else 0.0
+        self.brake_steps = round(config.rogue_brake_duration / self.dt)
+        self.cut_in_window_steps = round(config.rogue_cut_in_window / self.dt)
+        self.sustain_decisions = math.ceil(config.lane_change_sustain / self.decision_dt - 1e-9)
+        self.ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
+        self.ego_half_length = 0.5 * config.ego_length
+        self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
+        self.rngs: list[np.random.Generator | None] = [None] * envs
+
+    # ------------------------------------------------------------------ helpers
+    def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
+        """``(envs, lanes)``: the lanes the ego's footprint (its width, across d) touches."""
+        half = 0.5 * self.config.ego_width
+        low = np.floor((ego_d - half) / self.lane_width)[:, None]
+        high = np.floor((ego_d + half) / self.lane_width)[:, None]
+        return (self.lane_ids >= low) & (self.lane_ids <= high)
+
+    @property
+    def cars(self) -> int:
+        return self.state.cars
+
+    # ------------------------------------------------------------------ resets
+    def reset_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
+                 ego_speed: float = 0.0) -> None:
+        """Lay out env ``env``'s cars around its ego; all its randomness comes from ``rng``
+        (kept for :meth:`advance`)."""
+        st = self.state
+        if st.cars != self.config.car_count:
+            self.state = st = TrafficState(self.envs, self.config.car_count,
+                                           self.config.lane_change_duration)
+        self.rngs[env] = rng
+        reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        self._settle_pose(env)
+
+    def reset_to_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
+                    ego_speed: float, *, s: ArrayLike, lane: ArrayLike, speed: ArrayLike,
+                    desired_speed: ArrayLike | None = None,
+                    type_index: ArrayLike | None = None) -> None:
+        """Env ``env`` from explicit cars (scenarios, replays, tests); with a single env the
+        number of cars may differ from ``config.car_count``."""
+        s = np.atleast_1d(np.asarray(s, dtype=np.float64))
+        n = len(s)
+        lane = np.broadcast_to(np.asarray(lane, dtype=np.int64), (n,))
+        speed = np.broadcast_to(np.asarray(speed, dtype=np.float64), (n,))
+        desired = speed if desired_speed is None else np.broadcast_to(
+            np.asarray(desired_speed, dtype=np.float64), (n,))
+        types = np.zeros(n, dtype=np.int64) if type_index is None else np.broadcast_to(
+            np.asarray(type_index, dtype=np.int64), (n,))
+        if np.any((lane < 0) | (lane >= self.lanes)):
+            raise ValueError(f"lane must be in [0, {self.lanes}); got {lane.tolist()}")
+        if np.any((types < 0) | (types >= len(VEHICLE_TYPES))):
+            raise ValueError(f"type_index must be in [0, {len(VEHICLE_TYPES)})")
+        if n != self.state.cars:
+            if self.envs != 1:
+                raise ValueError(f"a batch of {self.envs} envs has {self.state.cars} cars "
+                                 f"per env; got {n}")
+            self.state = TrafficState(1, n, self.config.lane_change_duration)
+        self.rngs[env] = rng
+        reset_row_to(self, self.state, env, rng, ego_s, ego_d, ego_speed, s, lane, speed,
+                     desired, types)
+        self._settle_pose(env)
+
+    def _settle_pose(self, env: int) -> None:
+        st = self.state
+        rows = np.array([env])
+        sub = st.take(rows)
+        sub.kappa = self.geometry.curvature(sub.s)
+        self.geometry.update_pose(sub, self.geometry.samples_now(sub))
+        st.put(rows, sub)
+
+    # ------------------------------------------------------------------ motion
+    def samples_now(self) -> TrafficSamples:
+        """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``)."""
+        return self.geometry.samples_now(self.state)
+
+    def advance(self, frames: int, ego_s: FloatArray, ego_d: FloatArray,
+                ego_speed: FloatArray) -> TrafficSamples:
+        """Simulate ``frames`` physics frames of every env; the state after each one.
+
+        Args:
+            frames: number of physics frames (>= 1).
+            ego_s, ego_d, ego_speed: ``(envs, frames)`` the ego's Frenet state and speed
+                (m/s) after each frame. A decision instant uses the latest ego state
+                before it (the previous call's last one for a decision at the start).
+
+        Returns:
+            :class:`TrafficSamples` of ``(envs, frames, cars)`` arrays.
+        """
+        if any(rng is None for rng in self.rngs):
+            raise RuntimeError("call reset() before advance()")
+        if frames < 1:
+            raise ValueError(f"frames must be >= 1; got {frames}")
+        st = self.state
+        envs, cars = st.envs, st.cars
+        shape = (envs, frames, cars)
+        s_out, d_out, v_out, dd_out = (np.empty(shape) for _ in range(4))
+        period = self.config.decision_period
+        step0 = st.step.copy()
+        phase = step0 % period
+        first = (period - phase) % period  # frame of each env's first decision
+        segment_start = np.zeros(envs, dtype=np.int64)
+        every = np.arange(envs)
+        for k in range(0, frames):
+            deciding = np.flatnonzero((first <= k) & ((k - first) % period == 0))
+            if not len(deciding) or cars == 0:
+                continue
+            whole = len(deciding) == envs
+            rows = every if whole else deciding
+            sub = st if whole else st.take(rows)
+            begin = int(segment_start[rows[0]])  # the same for envs of one phase
+            if k > begin:
+                s, d, v, d_dot = self.geometry.segment(sub, k - begin, step0[rows] + begin)
+                s_out[rows, begin:k], d_out[rows, begin:k] = s, d
+                v_out[rows, begin:k], dd_out[rows, begin:k] = v, d_dot
+                sub.s = s[:, -1] % self.loop
+                sub.speed = v[:, -1]
+                sub.d = d[:, -1]
+            if k > 0:
+                sub.ego_s = ego_s[rows, k - 1] % self.loop
+                sub.ego_d = ego_d[rows, k - 1].copy()
+                sub.ego_speed = ego_speed[rows, k - 1].copy()
+            sub.step = step0[rows] + k
+            decide(self, sub, [self.rngs[int(e)] for e in rows])  # type: ignore[misc]
+            if not whole:
+                st.put(rows, sub)
+            segment_start[rows] = k
+        # The last segment of every env, from its last decision to the end of the window.
+        if cars:
+            start = None if not np.count_nonzero(segment_start) else segment_start
+            st.step = step0 + segment_start
+            s, d, v, d_dot = self.geometry.segment(st, frames, st.step, start)
+            if start is None:
+                s_out, d_out, v_out, dd_out = s, d, v, d_dot
+            else:
+                later = np.arange(frames)[None, :] >= segment_start[:, None]
+                s_out[later], d_out[later] = s[later], d[later]
+                v_out[later], dd_out[later] = v[later], d_dot[later]
+        st.step = step0 + frames
+        st.ego_s = ego_s[:, -1] % self.loop
+        st.ego_d = ego_d[:, -1].copy()
+        st.ego_speed = ego_speed[:, -1].copy()
+        samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
+        self.geometry.update_pose(st, samples)
+        return samples
