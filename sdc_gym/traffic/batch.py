@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
-from sdc_gym.traffic.kinematics import TrafficGeometry
+from sdc_gym.traffic.kinematics import RowsOf, TrafficGeometry
 from sdc_gym.traffic.placement import reset_row, reset_row_to
 from sdc_gym.traffic.state import TrafficState
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
@@ -73,8 +73,16 @@ class TrafficBatch:
         self.sustain_decisions = math.ceil(config.lane_change_sustain / self.decision_dt - 1e-9)
         self.ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
         self.ego_half_length = 0.5 * config.ego_length
+        # Constants of the decision kernel, shaped for its (envs, lanes, cars) arrays.
+        self.lane_column = self.lane_ids[None, :, None]
+        self.adjacent_of = self.adjacent.copy()  # [origin lane] -> adjacent lanes
+        self.penalty = np.array([np.inf, 0.0])  # [occupies]: 0 where the car is
+        self.ego_a_max = np.full((envs, 1), config.idm.a_max)
+        self.ego_tsab_column = np.full((envs, 1), self.ego_tsab)
+        self.ego_half_column = np.full((envs, 1), self.ego_half_length)
         self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
+        self._all = np.arange(envs)
 
     # ------------------------------------------------------------------ helpers
     def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
@@ -165,45 +173,38 @@ class TrafficBatch:
         s_out, d_out, v_out, dd_out = (np.empty(shape) for _ in range(4))
         period = self.config.decision_period
         step0 = st.step.copy()
-        phase = step0 % period
-        first = (period - phase) % period  # frame of each env's first decision
+        # Each env's decisions fall on frames k1, k1 + period, ... of the window. Round j
+        # takes every env's j-th decision at once: first the segment since the previous
+        # one (from each env's own start, padded to the longest), then the decisions.
+        decision = (period - step0 % period) % period  # frame of each env's next decision
         segment_start = np.zeros(envs, dtype=np.int64)
-        every = np.arange(envs)
-        for k in range(0, frames):
-            deciding = np.flatnonzero((first <= k) & ((k - first) % period == 0))
-            if not len(deciding) or cars == 0:
-                continue
-            whole = len(deciding) == envs
-            rows = every if whole else deciding
-            sub = st if whole else st.take(rows)
-            begin = int(segment_start[rows[0]])  # the same for envs of one phase
-            if k > begin:
-                s, d, v, d_dot = self.geometry.segment(sub, k - begin, step0[rows] + begin)
-                s_out[rows, begin:k], d_out[rows, begin:k] = s, d
-                v_out[rows, begin:k], dd_out[rows, begin:k] = v, d_dot
-                sub.s = s[:, -1] % self.loop
-                sub.speed = v[:, -1]
-                sub.d = d[:, -1]
-            if k > 0:
-                sub.ego_s = ego_s[rows, k - 1] % self.loop
-                sub.ego_d = ego_d[rows, k - 1].copy()
-                sub.ego_speed = ego_speed[rows, k - 1].copy()
-            sub.step = step0[rows] + k
-            decide(self, sub, [self.rngs[int(e)] for e in rows])  # type: ignore[misc]
-            if not whole:
-                st.put(rows, sub)
-            segment_start[rows] = k
-        # The last segment of every env, from its last decision to the end of the window.
         if cars:
-            start = None if not np.count_nonzero(segment_start) else segment_start
-            st.step = step0 + segment_start
-            s, d, v, d_dot = self.geometry.segment(st, frames, st.step, start)
-            if start is None:
-                s_out, d_out, v_out, dd_out = s, d, v, d_dot
-            else:
-                later = np.arange(frames)[None, :] >= segment_start[:, None]
-                s_out[later], d_out[later] = s[later], d[later]
-                v_out[later], dd_out[later] = v[later], d_dot[later]
+            while True:
+                rows = np.flatnonzero(decision < frames) if envs > 1 else (
+                    self._all if decision[0] < frames else self._all[:0])
+                if not len(rows):
+                    break
+                begin, end = segment_start[rows], decision[rows]
+                self._segment_into(st, rows, begin, end - begin, step0,
+                                   (s_out, d_out, v_out, dd_out), keep_end=True)
+                whole = len(rows) == envs
+                sub = st if whole else st.take(rows)
+                before = end - 1  # the ego's latest state before the decision
+                moved = before >= 0
+                if np.count_nonzero(moved):
+                    at = rows[moved], before[moved]
+                    sub.ego_s[moved] = ego_s[at] % self.loop
+                    sub.ego_d[moved] = ego_d[at]
+                    sub.ego_speed[moved] = ego_speed[at]
+                sub.step = step0[rows] + end
+                decide(self, sub, [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
+                if not whole:
+                    st.put(rows, sub)
+                segment_start[rows] = end
+                decision[rows] = end + period
+            # The last segment of every env, from its last decision to the window's end.
+            self._segment_into(st, self._all, segment_start, frames - segment_start, step0,
+                               (s_out, d_out, v_out, dd_out), keep_end=False)
         st.step = step0 + frames
         st.ego_s = ego_s[:, -1] % self.loop
         st.ego_d = ego_d[:, -1].copy()
@@ -211,3 +212,31 @@ class TrafficBatch:
         samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
         self.geometry.update_pose(st, samples)
         return samples
+
+    def _segment_into(self, st: TrafficState, rows: IntArray, begin: IntArray,
+                      length: IntArray, step0: IntArray, out: tuple[FloatArray, ...], *,
+                      keep_end: bool) -> None:
+        """Evaluate the segments of envs ``rows`` (``length`` frames from window frame
+        ``begin``) into the window arrays ``out``, one call per (begin, length) pair;
+        with ``keep_end``, a segment's end becomes its env's state."""
+        keys = begin * (out[0].shape[1] + 1) + length
+        groups = [rows] if len(rows) == 1 else [rows[keys == key] for key in np.unique(keys)]
+        every = len(rows) == self.envs
+        for group in groups:
+            first = int(np.flatnonzero(rows == group[0])[0]) if len(groups) > 1 else 0
+            b, m = int(begin[first]), int(length[first])
+            if m == 0:
+                continue
+            whole = every and len(group) == self.envs
+            source = st if whole else RowsOf(st, group)
+            s, d, v, d_dot = self.geometry.segment(source, m, step0[group] + b)
+            if whole:
+                out[0][:, b:b + m], out[1][:, b:b + m] = s, d
+                out[2][:, b:b + m], out[3][:, b:b + m] = v, d_dot
+            else:
+                out[0][group, b:b + m], out[1][group, b:b + m] = s, d
+                out[2][group, b:b + m], out[3][group, b:b + m] = v, d_dot
+            if keep_end:
+                st.s[group] = s[:, -1] % self.loop
+                st.speed[group] = v[:, -1]
+                st.d[group] = d[:, -1]

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.traffic.config import TrafficConfig
+from sdc_gym.traffic.gather import gather
 from sdc_gym.traffic.idm import _NOT_ZERO as _IDM_NOT_ZERO
 from sdc_gym.traffic.leaders import nearest_objects
 from sdc_gym.traffic.placement import recycle
@@ -50,16 +51,17 @@ def stopping_gap(v_back: FloatArray, v_front: FloatArray, cfg: TrafficConfig,
 def objects(batch: TrafficBatch, st: TrafficState) -> tuple[FloatArray, FloatArray,
                                                             FloatArray, NDArray[np.bool_]]:
     """s, d, speed ``(envs, cars + 1)`` of every object (the cars, then the ego) and the
-    lanes each occupies ``(envs, cars + 1, lanes)``: a car its origin and target lane,
+    lanes each occupies ``(envs, lanes, cars + 1)``: a car its origin and target lane,
     the ego every lane its footprint touches."""
     s_all = np.concatenate([st.s, st.ego_s[:, None]], axis=1)
     d_all = np.concatenate([st.d, st.ego_d[:, None]], axis=1)
     v_all = np.concatenate([st.speed, st.ego_speed[:, None]], axis=1)
-    lanes = batch.lane_ids
-    occupies = np.empty((st.envs, st.cars + 1, len(lanes)), dtype=bool)
-    np.equal(lanes, st.origin[:, :, None], out=occupies[:, :-1])
-    occupies[:, :-1] |= lanes == st.target_lane[:, :, None]
-    occupies[:, -1] = batch.ego_lanes(st.ego_d)
+    lanes = batch.lane_column
+    occupies = np.empty((st.envs, batch.lanes, st.cars + 1), dtype=bool)
+    cars = occupies[:, :, :-1]
+    np.equal(lanes, st.origin[:, None, :], out=cars)
+    cars |= lanes == st.target_lane[:, None, :]
+    occupies[:, :, -1] = batch.ego_lanes(st.ego_d)
     return s_all, d_all, v_all, occupies
 
 
@@ -77,16 +79,15 @@ def idm_terms(batch: TrafficBatch, st: TrafficState, v_all: FloatArray
     """Per object (cars, then the ego, who "wants" its current speed): speed, ``v T``,
     ``a_max * (free-road term)``, ``a_max``, ``2 sqrt(a_max b)``."""
     idm = batch.config.idm
-    envs = st.envs
     v0 = np.concatenate([st.desired, np.maximum(st.ego_speed, 0.1)[:, None]], axis=1)
-    a = np.concatenate([st.a_max, np.full((envs, 1), idm.a_max)], axis=1)
-    tsab = np.concatenate([st.tsab, np.full((envs, 1), batch.ego_tsab)], axis=1)
+    a = np.concatenate([st.a_max, batch.ego_a_max[: st.envs]], axis=1)
+    tsab = np.concatenate([st.tsab, batch.ego_tsab_column[: st.envs]], axis=1)
     ratio = np.maximum(v_all, 0.0)
     ratio /= v0
     free = ratio ** idm.delta
     np.subtract(1.0, free, out=free)
-    afree = a * free
-    return v_all, v_all * idm.T, afree, a, tsab
+    free *= a
+    return v_all, v_all * idm.T, free, a, tsab
 
 
 def idm(cfg: TrafficConfig, v: FloatArray, vt: FloatArray, afree: FloatArray,
@@ -111,10 +112,6 @@ def idm(cfg: TrafficConfig, v: FloatArray, vt: FloatArray, afree: FloatArray,
     return np.maximum(w, -params.max_braking, out=w)
 
 
-def _gather(values: NDArray, index: NDArray) -> NDArray:
-    return np.take_along_axis(values, index, axis=-1)
-
-
 def begin_change(batch: TrafficBatch, st: TrafficState, start: NDArray[np.bool_],
                  lane: IntArray, duration: float) -> None:
     """Start lane changes of the ``start`` cars into ``lane``, lasting ``duration`` s."""
@@ -135,7 +132,7 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
     before it, ``rngs`` the envs' generators (recycling and rogue events draw from them).
     """
     cfg = batch.config
-    n, lanes = st.cars, batch.lanes
+    n = st.cars
     if n == 0:
         return
     now = st.step[:, None]
@@ -147,66 +144,66 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
     s_all, d_all, v_all, occupies = objects(batch, st)
     rel = relative(batch, s_all, st.ego_s)
     farthest = np.abs(rel).max(axis=1)
-    far_envs = np.flatnonzero(farthest > batch.range)
-    if len(far_envs):
-        moved = [int(e) for e in far_envs if recycle(batch, st, int(e), rel[e, :n], rngs[e])]
-        if moved:  # cars moved: rebuild
-            s_all, d_all, v_all, occupies = objects(batch, st)
+    if np.count_nonzero(farthest > batch.range):
+        far_envs = np.flatnonzero(farthest > batch.range)
+        if any([recycle(batch, st, int(e), rel[e, :n], rngs[e]) for e in far_envs]):
+            s_all, d_all, v_all, occupies = objects(batch, st)  # cars moved: rebuild
             rel = relative(batch, s_all, st.ego_s)
             farthest = np.abs(rel).max(axis=1)
     kappa = batch.geometry.curvature(s_all)
     st.kappa = kappa[:, :n]
     scale_all = kappa * d_all
     scale_all += 1.0
-    half_all = np.concatenate([st.half_length, np.full((st.envs, 1), batch.ego_half_length)],
-                              axis=1)
+    half_all = np.concatenate([st.half_length, batch.ego_half_column[: st.envs]], axis=1)
 
     # Leaders (ahead) and followers (behind) of every car in every lane: (envs, lanes, n).
     li, ds_ahead, fi, ds_behind = nearest_objects(
         rel, occupies, farthest >= 0.25 * batch.loop, batch.loop)
     own_half = st.half_length[:, None, :]
     lead_gap = ds_ahead * scale_all[:, None, :n]
-    lead_gap -= own_half + _gather(half_all[:, None, :], li)
-    follow_gap = ds_behind * _gather(scale_all[:, None, :], fi)
-    follow_gap -= own_half + _gather(half_all[:, None, :], fi)
-    lead_v = _gather(v_all[:, None, :], li)
+    lead_gap -= own_half + gather(half_all[:, None, :], li)
+    follow_gap = ds_behind * gather(scale_all[:, None, :], fi)
+    follow_gap -= own_half + gather(half_all[:, None, :], fi)
+    lead_v = gather(v_all[:, None, :], li)
 
-    # The leader over the lane(s) each car occupies: the nearest of its lanes' leaders.
-    own_gaps = lead_gap + np.where(occupies[:, :n].transpose(0, 2, 1), 0.0, np.inf)
+    # The leader over the lane(s) each car occupies: the nearest of its lanes' leaders
+    # (lanes it does not occupy pushed to inf).
+    own_gaps = lead_gap + batch.penalty.take(occupies[:, :, :n].view(np.uint8))
     own = own_gaps.argmin(axis=1)[:, None, :]
-    own_gap = _gather(own_gaps.transpose(0, 2, 1), own.transpose(0, 2, 1))[..., 0]
-    own_lead_v = _gather(lead_v.transpose(0, 2, 1), own.transpose(0, 2, 1))[..., 0]
+    own_gap = gather(own_gaps.transpose(0, 2, 1), own.transpose(0, 2, 1)).transpose(0, 2, 1)
+    own_lead_v = gather(lead_v.transpose(0, 2, 1), own.transpose(0, 2, 1)).transpose(0, 2, 1)
 
-    # IDM in every lane (as if there), with the own leader, and for the new follower
+    # IDM in every lane (as if there) and with the own leader, and for the new follower
     # behind the car in every lane (MOBIL's imposed braking; its leader: the car).
     v, vt, afree, a, tsab = idm_terms(batch, st, v_all)
-    car = (slice(None), slice(None, n))
-    follower = (v, vt, afree, a, tsab)
-    terms = [np.concatenate([np.broadcast_to(term[car][:, None, :], (st.envs, lanes + 1, n)),
-                             _gather(term[:, None, :], fi)], axis=1) for term in follower]
-    leader_v = np.concatenate([lead_v, own_lead_v[:, None, :],
-                               np.broadcast_to(st.speed[:, None, :], (st.envs, lanes, n))],
-                              axis=1)
-    gaps = np.concatenate([lead_gap, own_gap[:, None, :], follow_gap], axis=1)
-    acc_all = idm(cfg, *terms, leader_v, gaps)
-    acc_lane, acc, imposed = acc_all[:, :lanes], acc_all[:, lanes], acc_all[:, lanes + 1:]
+    car = (slice(None), None, slice(None, n))
+    acc_lane = idm(cfg, v[car], vt[car], afree[car], a[car], tsab[car], lead_v, lead_gap)
+    acc = idm(cfg, v[car], vt[car], afree[car], a[car], tsab[car], own_lead_v, own_gap)
+    imposed = idm(cfg, gather(v[:, None, :], fi), gather(vt[:, None, :], fi),
+                  gather(afree[:, None, :], fi), gather(a[:, None, :], fi),
+                  gather(tsab[:, None, :], fi), st.speed[:, None, :], follow_gap)
 
     # Lane-change wishes: clear +-clearance, MOBIL incentive and safety; sustained.
     brake_until = st.brake_until  # as it was before this decision's rogue events
-    adjacent = batch.adjacent[st.origin].transpose(0, 2, 1)  # (envs, lanes, n)
+    adjacent = batch.adjacent_of[st.origin]  # (envs, n, lanes)
     clear_ahead = ds_ahead >= cfg.lane_change_clearance
     clear_behind = ds_behind >= cfg.lane_change_clearance
-    candidate = np.subtract(acc_lane, acc[:, None, :]) > cfg.lane_change_min_gain
-    candidate &= adjacent
-    candidate &= (st.lc_end == IDLE)[:, None, :]
+    candidate = np.subtract(acc_lane, acc) > cfg.lane_change_min_gain
+    candidate &= adjacent.transpose(0, 2, 1)
     candidate &= clear_ahead
     candidate &= clear_behind
-    candidate &= ((st.speed >= cfg.lane_change_min_speed) & (now >= brake_until))[:, None, :]
+    eligible = st.lc_end == IDLE
+    eligible &= st.speed >= cfg.lane_change_min_speed
+    eligible &= now >= brake_until
+    candidate &= eligible[:, None, :]
     if np.count_nonzero(candidate):
         limit = -cfg.lane_change_max_braking_imposed
         candidate &= (acc_lane >= limit) & ((imposed >= limit) | np.isinf(follow_gap))
-    best = np.where(candidate, acc_lane, -np.inf).argmax(axis=1)
-    want = np.where(_gather(candidate.transpose(0, 2, 1), best[..., None])[..., 0], best, -1)
+        best = np.where(candidate, acc_lane, -np.inf).argmax(axis=1)
+        want = np.where(gather(candidate.transpose(0, 2, 1), best[..., None])[..., 0], best,
+                        -1)
+    else:
+        want = np.full((st.envs, n), -1, dtype=np.int64)
     wish = want >= 0
     wish &= want == st.pending
     st.held = held = (st.held + 1) * wish
@@ -216,15 +213,17 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
         # One start per target lane per decision (the lowest slot): two cars entering a
         # lane at once did not see each other in their checks. The others keep their
         # sustained wish and retry at the next decision.
-        keyed = np.where(start, want, lanes)
-        first = np.full((st.envs, lanes + 1), n, dtype=np.int64)
+        keyed = np.where(start, want, batch.lanes)
+        first = np.full((st.envs, batch.lanes + 1), n, dtype=np.int64)
         np.minimum.at(first, (np.arange(st.envs)[:, None], keyed), np.arange(n)[None, :])
-        start &= _gather(first, keyed) == np.arange(n)[None, :]
+        start &= gather(first, keyed) == np.arange(n)[None, :]
         begin_change(batch, st, start, want, cfg.lane_change_duration)
 
+    acc = acc[:, 0]
     if batch.rogue_p > 0.0:
-        acc = _rogue(batch, st, rngs, acc, brake_until, adjacent, clear_ahead & clear_behind,
-                     lead_gap, follow_gap, lead_v, _gather(v_all[:, None, :], fi))
+        acc = _rogue(batch, st, rngs, acc, brake_until, adjacent.transpose(0, 2, 1),
+                     clear_ahead & clear_behind, lead_gap, follow_gap, lead_v,
+                     gather(v_all[:, None, :], fi))
     st.acc = acc
     st.half_acc = acc * 0.5
 
@@ -260,7 +259,7 @@ def _rogue(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
             follow_gap >= gap + stopping_gap(follow_v, v, cfg, delay))
         candidate = trying[:, None, :] & adjacent & ~clear & room
         pick = np.where(candidate, u[:, 2:], -1.0).argmax(axis=1)
-        go = _gather(candidate.transpose(0, 2, 1), pick[..., None])[..., 0]
+        go = gather(candidate.transpose(0, 2, 1), pick[..., None])[..., 0]
         if np.count_nonzero(go):
             begin_change(batch, st, go, pick, cfg.rogue_cut_in_duration)
             st.cut_in_until = np.where(go, 0, st.cut_in_until)

@@ -31,6 +31,20 @@ IntArray = NDArray[np.int64]
 GEOMETRY_STEP = 0.25  # m, spacing of the geometry look-up tables
 
 
+class RowsOf:
+    """The fields of some rows of a :class:`TrafficState`, taken when first read (the
+    segment kernels read a dozen of the state's forty fields)."""
+
+    def __init__(self, state: TrafficState, rows: IntArray) -> None:
+        self._state = state
+        self._rows = rows
+
+    def __getattr__(self, name: str) -> NDArray:
+        value = getattr(self._state, name)[self._rows]
+        setattr(self, name, value)
+        return value
+
+
 class TrafficGeometry:
     """Road tables for the traffic (see the module docstring) and the segment kernels."""
 
@@ -72,7 +86,7 @@ class TrafficGeometry:
         return np.interp(s, self.kappa_grid, self.kappa_table)
 
     # ------------------------------------------------------------------ lateral motion
-    def lateral(self, state: TrafficState, base: IntArray, k: IntArray,
+    def lateral(self, state: TrafficState | RowsOf, base: IntArray, k: IntArray,
                 angle: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
         """d and d_dot ``(envs, frames, cars)`` at ``k`` frames after step ``base``.
 
@@ -97,44 +111,36 @@ class TrafficGeometry:
         changing = state.target_lane != state.origin
         if np.count_nonzero(changing):
             # Quintic minimum-jerk step 10 tau^3 - 15 tau^4 + 6 tau^5 and its time
-            # derivative (30 shift / duration) tau^2 (1 - tau)^2; a car not changing lanes
-            # has a zero shift.
-            duration = state.lc_duration[:, None, :]
-            j = (base + k) - state.lc_start[:, None, :]
-            tau = np.clip(j * (self.dt / duration), 0.0, 1.0)
+            # derivative (30 shift / duration) tau^2 (1 - tau)^2, for the cars changing
+            # lanes (the others' shift is zero: they would add zeros).
+            env, car = np.nonzero(changing)
+            duration = state.lc_duration[env, car][:, None]
+            frames = np.broadcast_to(base + k, (*d.shape[:2], 1))[env, :, 0]
+            j = frames - state.lc_start[env, car][:, None]
+            tau = np.minimum(np.maximum(j * (self.dt / duration), 0.0), 1.0)
             tau2 = tau * tau
             step = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
             rate = tau2 * (1.0 - tau) ** 2
-            shift = ((state.target_lane - state.origin) * self.lane_width)[:, None, :]
+            shift = ((state.target_lane[env, car] - state.origin[env, car])
+                     * self.lane_width)[:, None]
             step *= shift
             rate *= 30.0 * shift / duration
-            d += step
-            d_dot += rate
+            d[env, :, car] += step
+            d_dot[env, :, car] += rate
         return d, d_dot
 
     # ------------------------------------------------------------------ segments
-    def segment(self, state: TrafficState, frames: int, base: IntArray,
-                start: IntArray | None = None
+    def segment(self, state: TrafficState | RowsOf, frames: int, base: IntArray
                 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
         """``frames`` frames with the held accelerations from every env's current state:
         s (unwrapped), d, speed, d_dot, each ``(envs, frames, cars)``; ``base`` (``(envs,)``)
-        is the step at each segment's start.
-
-        ``start`` (``(envs,)``, frame offsets into a window of ``frames`` frames): an env's
-        segment begins at that frame of the window, and the frames before it are left
-        undefined (the caller keeps what an earlier segment gave there). ``None``: every
-        segment starts at the window's start.
-        """
+        is the step at each segment's start."""
         dt = self.dt
         k = np.arange(1, frames + 1, dtype=np.int64)[None, :, None]  # frames into it
-        if start is not None:
-            k = k - start[:, None, None]
         t = k * dt
         base = base[:, None, None]
         v0 = state.speed[:, None, :]
         acc = state.acc[:, None, :]
-        angle = state.omega[:, None, :] * (base * dt + t)
-        angle += state.phase[:, None, :]
         # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
         t_stop = np.where(acc < 0.0, v0, np.inf) / np.maximum(-acc, 1e-12)
         te = np.minimum(t, t_stop)
@@ -143,13 +149,14 @@ class TrafficGeometry:
         inner = state.half_acc[:, None, :] * te
         inner += v0
         dist = te * inner  # along the lane since the segment's start
-        if start is not None:
-            dist[k[..., 0] <= 0] = 0.0
         inc = np.empty_like(dist)
         inc[:, 0] = dist[:, 0]
         np.subtract(dist[:, 1:], dist[:, :-1], out=inc[:, 1:])
-        d, d_dot = self.lateral(state, base, k, angle if self.config.lateral_wander > 0.0
-                                else None)
+        angle = None
+        if self.config.lateral_wander > 0.0:
+            angle = state.omega[:, None, :] * (base * dt + t)
+            angle += state.phase[:, None, :]
+        d, d_dot = self.lateral(state, base, k, angle)
         # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
         scale = state.kappa[:, None, :] * d
         scale += 1.0

@@ -23,13 +23,10 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.traffic.gather import gather
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.intp]
-
-
-def _gather(values: NDArray, index: NDArray) -> NDArray:
-    """``values[..., index]`` along the last axis, ``index`` broadcasting on the others."""
-    return np.take_along_axis(values, index, axis=-1)
 
 
 def nearest_objects(rel: FloatArray, occupies: NDArray[np.bool_], fold: NDArray[np.bool_],
@@ -38,7 +35,7 @@ def nearest_objects(rel: FloatArray, occupies: NDArray[np.bool_], fold: NDArray[
 
     Args:
         rel: ``(envs, objects)`` s minus the ego's, folded; the cars first, the ego last.
-        occupies: ``(envs, objects, lanes)`` which lanes each object occupies.
+        occupies: ``(envs, lanes, objects)`` which lanes each object occupies.
         fold: ``(envs,)`` whether gaps are folded in that env.
         loop: the loop length (m).
 
@@ -49,109 +46,140 @@ def nearest_objects(rel: FloatArray, occupies: NDArray[np.bool_], fold: NDArray[
     """
     envs, objects = rel.shape
     cars = objects - 1
-    half = 0.5 * loop
-    order = np.argsort(rel, axis=1, kind="stable")  # by rel, then by index
-    ranks = np.empty_like(order)
-    np.put_along_axis(ranks, order, np.arange(objects)[None, :], axis=1)
-    sorted_rel = np.take_along_axis(rel, order, axis=1)
-    positions = np.arange(objects)
-    # Blocks of equal rel: the first position of each position's block, and the first
-    # position after it.
-    new_block = np.ones((envs, objects), dtype=bool)
-    np.not_equal(sorted_rel[:, 1:], sorted_rel[:, :-1], out=new_block[:, 1:])
-    block_start = np.maximum.accumulate(np.where(new_block, positions, 0), axis=1)
-    next_start = np.minimum.accumulate(np.where(new_block, positions, objects)[:, ::-1],
-                                       axis=1)[:, ::-1]
-    block_end = np.empty_like(next_start)
-    block_end[:, :-1] = next_start[:, 1:]
-    block_end[:, -1] = objects
+    lanes = occupies.shape[1]
+    positions = _positions(objects)
+    order = rel.argsort(axis=1, kind="stable")  # by rel, then by index
+    # Sorted rel with a sentinel column (position `objects`: none) of +inf (ahead) and
+    # -inf (behind); the object index there is 0.
+    sorted_hi = np.empty((envs, objects + 1))
+    sorted_rel = sorted_hi[:, :-1]
+    sorted_rel[...] = gather(rel, order)
+    sorted_hi[:, -1] = np.inf
+    sorted_lo = sorted_hi.copy()
+    sorted_lo[:, -1] = -np.inf
+    order_ext = np.zeros((envs, objects + 1), dtype=np.intp)
+    order_ext[:, :-1] = order
+    ranks = np.empty((envs, objects), dtype=np.intp)
+    ranks[_rows(envs), order] = positions
+    car_rank = ranks[:, None, :cars]
+    ties = np.count_nonzero(sorted_rel[:, 1:] == sorted_rel[:, :-1])
+    block_start = None
+    if ties:  # blocks of equal rel: first position of each one's block, first after it
+        new_block = np.ones((envs, objects), dtype=bool)
+        np.not_equal(sorted_rel[:, 1:], sorted_rel[:, :-1], out=new_block[:, 1:])
+        block_start = np.maximum.accumulate(np.where(new_block, positions, 0), axis=1)
+        block_end = np.full((envs, objects), objects, dtype=np.intp)
+        block_end[:, :-1] = np.minimum.accumulate(
+            np.where(new_block, positions, objects)[:, :0:-1], axis=1)[:, ::-1]
+        car_end = gather(block_end[:, None, :], car_rank)
+    else:
+        car_end = car_rank + 1
     # Per lane, in sorted order: the first occupant at or after each position (objects:
     # none) and the last one at or before it (-1: none). Both get one extra column, so
     # that position `objects` (past the end) and -1 (before the start) can be looked up.
-    member = np.take_along_axis(occupies, order[:, :, None], axis=1).transpose(0, 2, 1)
-    lanes = member.shape[1]
+    member = gather(occupies, order[:, None, :])
     first_from = np.full((envs, lanes, objects + 1), objects, dtype=np.intp)
-    first_from[..., :-1] = np.minimum.accumulate(
-        np.where(member, positions, objects)[..., ::-1], axis=2)[..., ::-1]
+    np.minimum.accumulate(np.where(member, positions, objects)[..., ::-1], axis=2,
+                          out=first_from[..., -2::-1])
     last_upto = np.full((envs, lanes, objects + 1), -1, dtype=np.intp)  # [p + 1]: <= p
-    last_upto[..., 1:] = np.maximum.accumulate(np.where(member, positions, -1), axis=2)
+    np.maximum.accumulate(np.where(member, positions, -1), axis=2, out=last_upto[..., 1:])
 
-    car_rank = ranks[:, None, :cars]  # (envs, 1, cars)
-    car_end = _gather(block_end[:, None, :], car_rank)  # first position after i's block
-    # Ahead: the first occupant past i's block.
-    ahead_pos = _gather(first_from, car_end)
+    ahead_pos = gather(first_from, car_end)  # the first occupant past i's block
     # Behind: the last occupant up to i's block but i, then the first (lowest index)
     # occupant of that one's block, i excluded.
-    behind_last = _gather(last_upto, car_end)
-    is_self = behind_last == car_rank
+    behind_pos = gather(last_upto, car_end)
+    is_self = behind_pos == car_rank
     if np.count_nonzero(is_self):
-        behind_last = np.where(is_self, _gather(last_upto, car_rank), behind_last)
-    behind_pos = _gather(first_from, _gather(np.broadcast_to(
-        block_start[:, None, :], (envs, lanes, objects)), np.maximum(behind_last, 0)))
-    first_is_self = behind_pos == car_rank
-    if np.count_nonzero(first_is_self):
-        behind_pos = np.where(first_is_self, _gather(first_from, car_rank + 1), behind_pos)
-    behind_pos = np.where(behind_last >= 0, behind_pos, objects)
+        behind_pos = np.where(is_self, gather(last_upto, car_rank), behind_pos)
+    if block_start is not None:
+        first = gather(first_from, gather(block_start[:, None, :], np.maximum(behind_pos, 0)))
+        first_is_self = first == car_rank
+        if np.count_nonzero(first_is_self):
+            first = np.where(first_is_self, gather(first_from, car_rank + 1), first)
+        behind_pos = np.where(behind_pos >= 0, first, -1)
+    behind_pos %= objects + 1  # -1 (none) -> the sentinel column
 
     car_rel = rel[:, None, :cars]
-    ahead, ahead_gap = _resolve(order, rel, car_rel, ahead_pos, objects, np.inf)
-    behind, behind_delta = _resolve(order, rel, car_rel, behind_pos, objects, -np.inf)
-    folded = np.flatnonzero(fold)
-    if len(folded):
-        # Gaps fold once more; the loop's other end offers one more candidate per side.
-        ahead_gap = _fold(ahead_gap, half, loop)
-        behind_delta = _fold(behind_delta, half, loop)
-        wrap_ahead_pos = np.broadcast_to(first_from[..., :1], ahead_pos.shape)
-        wrap_ahead, wrap_ahead_gap = _resolve(order, rel, car_rel, wrap_ahead_pos, objects,
-                                              np.inf)
-        wrap_ahead_gap = _fold(wrap_ahead_gap, half, loop)
-        last = last_upto[..., -1:]  # the last occupant overall, then its block's first
-        wrap_behind_pos = _gather(first_from, _gather(np.broadcast_to(
-            block_start[:, None, :], (envs, lanes, objects)), np.maximum(last, 0)))
-        wrap_behind_pos = np.where(last >= 0, wrap_behind_pos, objects)
-        wrap_behind_pos = np.broadcast_to(wrap_behind_pos, behind_pos.shape)
-        wrap_behind, wrap_behind_delta = _resolve(order, rel, car_rel, wrap_behind_pos,
-                                                  objects, -np.inf)
-        wrap_behind_delta = _fold(wrap_behind_delta, half, loop)
-        rows = fold[:, None, None]
-        ahead_ok = ahead_gap > 0.0
-        wrap_ok = wrap_ahead_gap > 0.0
-        take_wrap = wrap_ok & (~ahead_ok | (wrap_ahead_gap < ahead_gap)
-                               | ((wrap_ahead_gap == ahead_gap) & (wrap_ahead < ahead)))
-        new_ahead = np.where(take_wrap, wrap_ahead, np.where(ahead_ok, ahead, 0))
-        new_gap = np.where(take_wrap, wrap_ahead_gap, np.where(ahead_ok, ahead_gap, np.inf))
-        ahead = np.where(rows, new_ahead, ahead)
-        ahead_gap = np.where(rows, new_gap, ahead_gap)
-        self_index = np.arange(cars)[None, None, :]
-        behind_ok = behind_delta <= 0.0
-        wrap_ok = (wrap_behind_delta <= 0.0) & (wrap_behind != self_index)
-        take_wrap = wrap_ok & (~behind_ok | (wrap_behind_delta > behind_delta)
-                               | ((wrap_behind_delta == behind_delta)
-                                  & (wrap_behind < behind)))
-        new_behind = np.where(take_wrap, wrap_behind, np.where(behind_ok, behind, 0))
-        new_delta = np.where(take_wrap, wrap_behind_delta,
-                             np.where(behind_ok, behind_delta, -np.inf))
-        behind = np.where(rows, new_behind, behind)
-        behind_delta = np.where(rows, new_delta, behind_delta)
+    ahead = gather(order_ext[:, None, :], ahead_pos)
+    ahead_gap = gather(sorted_hi[:, None, :], ahead_pos)
+    ahead_gap -= car_rel
+    behind = gather(order_ext[:, None, :], behind_pos)
+    behind_delta = gather(sorted_lo[:, None, :], behind_pos)
+    behind_delta -= car_rel
+    if np.count_nonzero(fold):
+        ahead, ahead_gap, behind, behind_delta = _wrap(
+            fold, loop, order_ext, sorted_hi, sorted_lo, car_rel, first_from, last_upto,
+            block_start, ahead, ahead_gap, behind, behind_delta)
     # The gap behind as the search measured it: the negated difference (+ 0.0 turns the
     # -0.0 of a tie into 0.0, as the sum with a zero penalty did).
-    behind_gap = np.negative(behind_delta)
-    behind_gap += 0.0
-    return ahead, ahead_gap, behind, behind_gap
+    np.negative(behind_delta, out=behind_delta)
+    behind_delta += 0.0
+    return ahead, ahead_gap, behind, behind_delta
 
 
-def _resolve(order: IntArray, rel: FloatArray, car_rel: FloatArray, position: IntArray,
-             objects: int, none: float) -> tuple[IntArray, FloatArray]:
-    """Object index and raw difference ``rel[object] - rel[car]`` of sorted positions
-    (position ``objects``: none, index 0 and difference ``none``)."""
-    found = position < objects
-    index = _gather(order[:, None, :], np.minimum(position, objects - 1))
-    delta = _gather(rel[:, None, :], index) - car_rel
-    return np.where(found, index, 0), np.where(found, delta, none)
+def _wrap(fold: NDArray[np.bool_], loop: float, order_ext: IntArray, sorted_hi: FloatArray,
+          sorted_lo: FloatArray, car_rel: FloatArray, first_from: IntArray,
+          last_upto: IntArray, block_start: IntArray | None, ahead: IntArray,
+          ahead_gap: FloatArray, behind: IntArray, behind_delta: FloatArray
+          ) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
+    """Folded envs: gaps fold once more, and the loop's other end offers one more
+    candidate per side (the first occupant overall ahead, the last one behind)."""
+    half = 0.5 * loop
+    objects = sorted_hi.shape[1] - 1
+    cars = car_rel.shape[-1]
+    shape = ahead.shape
+    folded_ahead = _fold(ahead_gap, half, loop)
+    folded_behind = _fold(behind_delta, half, loop)
+    wrap_ahead_pos = np.ascontiguousarray(np.broadcast_to(first_from[..., :1], shape))
+    wrap_ahead = gather(order_ext[:, None, :], wrap_ahead_pos)
+    wrap_ahead_gap = _fold(gather(sorted_hi[:, None, :], wrap_ahead_pos) - car_rel, half, loop)
+    last = last_upto[..., -1:]  # the last occupant overall, then its block's first
+    if block_start is not None:
+        last = np.where(last >= 0, gather(first_from, gather(
+            block_start[:, None, :], np.maximum(last, 0))), -1)
+    wrap_behind_pos = np.ascontiguousarray(np.broadcast_to(last % (objects + 1), shape))
+    wrap_behind = gather(order_ext[:, None, :], wrap_behind_pos)
+    wrap_behind_delta = _fold(gather(sorted_lo[:, None, :], wrap_behind_pos) - car_rel,
+                              half, loop)
+    ahead_ok = folded_ahead > 0.0
+    wrap_ok = wrap_ahead_gap > 0.0
+    take_wrap = wrap_ok & (~ahead_ok | (wrap_ahead_gap < folded_ahead)
+                           | ((wrap_ahead_gap == folded_ahead) & (wrap_ahead < ahead)))
+    new_ahead = np.where(take_wrap, wrap_ahead, np.where(ahead_ok, ahead, 0))
+    new_gap = np.where(take_wrap, wrap_ahead_gap, np.where(ahead_ok, folded_ahead, np.inf))
+    behind_ok = folded_behind <= 0.0
+    wrap_ok = (wrap_behind_delta <= 0.0) & (wrap_behind != np.arange(cars))
+    take_wrap = wrap_ok & (~behind_ok | (wrap_behind_delta > folded_behind)
+                           | ((wrap_behind_delta == folded_behind) & (wrap_behind < behind)))
+    new_behind = np.where(take_wrap, wrap_behind, np.where(behind_ok, behind, 0))
+    new_delta = np.where(take_wrap, wrap_behind_delta,
+                         np.where(behind_ok, folded_behind, -np.inf))
+    rows = fold[:, None, None]
+    return (np.where(rows, new_ahead, ahead), np.where(rows, new_gap, ahead_gap),
+            np.where(rows, new_behind, behind), np.where(rows, new_delta, behind_delta))
 
 
 def _fold(delta: FloatArray, half: float, loop: float) -> FloatArray:
-    """Differences folded to ``[-L/2, L/2)`` (inf stays inf)."""
+    """Differences folded to ``[-L/2, L/2)`` (+-inf stay as they are)."""
     with np.errstate(invalid="ignore"):
         folded = np.remainder(delta + half, loop) - half
     return np.where(np.isinf(delta), delta, folded)
+
+
+_CACHE: dict[tuple[str, int], NDArray[np.intp]] = {}
+
+
+def _positions(count: int) -> NDArray[np.intp]:
+    """``arange(count)`` (kept)."""
+    key = ("positions", count)
+    if key not in _CACHE:
+        _CACHE[key] = np.arange(count)
+    return _CACHE[key]
+
+
+def _rows(envs: int) -> NDArray[np.intp]:
+    """``arange(envs)[:, None]`` (kept)."""
+    key = ("rows", envs)
+    if key not in _CACHE:
+        _CACHE[key] = np.arange(envs)[:, None]
+    return _CACHE[key]
