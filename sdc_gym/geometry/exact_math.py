@@ -24,8 +24,9 @@ FloatArray = NDArray[np.float64]
 
 def _binary(function: Callable[[float, float], float], a: ArrayLike, b: ArrayLike
             ) -> FloatArray:
-    x, y = np.broadcast_arrays(np.asarray(a, dtype=np.float64),
-                               np.asarray(b, dtype=np.float64))
+    x, y = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    if x.shape != y.shape:
+        x, y = np.broadcast_arrays(x, y)
     flat = list(map(function, x.ravel().tolist(), y.ravel().tolist()))
     return np.array(flat, dtype=np.float64).reshape(x.shape)
 

@@ -28,10 +28,7 @@ _NO_INCIDENTS: tuple[Incident, ...] = ()
 
 def _shift(first: NDArray, values: NDArray) -> NDArray:
     """``values`` one frame later: ``first`` (per env), then all but the last frame."""
-    out = np.empty_like(values)
-    out[:, 0] = first
-    out[:, 1:] = values[:, :-1]
-    return out
+    return np.concatenate([first[:, None], values[:, :-1]], axis=1)
 
 
 class DrivingMetricsBatch:
@@ -44,7 +41,7 @@ class DrivingMetricsBatch:
         extra_kinds: incident kinds the env detects itself (see :meth:`record`).
     """
 
-    FLOATS = ("x1", "y1", "x2", "y2", "vx2", "vy2", "ax2", "ay2", "l2", "s_last",
+    FLOATS = ("s_last",
               "distance", "progress", "next_lap_mark", "last_mark_time", "max_speed",
               "last_speed", "max_raw_acc", "max_raw_jerk", "last_raw_acc", "last_raw_jerk",
               "blk_sum", "kap_sum", "prev_block_v", "window_sum", "prev_window_mean",
@@ -78,6 +75,9 @@ class DrivingMetricsBatch:
             setattr(self, name, np.zeros(envs, dtype=np.int64))
         for name in self.BOOLS:
             setattr(self, name, np.zeros(envs, dtype=bool))
+        # The three positions before the next sample (copies of the start after a reset).
+        self.back_x = np.zeros((envs, 3))
+        self.back_y = np.zeros((envs, 3))
         self.counts = np.zeros((envs, len(kinds)), dtype=np.int64)
         self.lap_times: list[list[float]] = [[] for _ in range(envs)]
         self.incidents: list[list[Incident]] = [[] for _ in range(envs)]
@@ -98,9 +98,8 @@ class DrivingMetricsBatch:
             getattr(self, name)[env] = 0
         for name in self.BOOLS:
             getattr(self, name)[env] = False
-        x, y = float(x), float(y)
-        self.x1[env] = self.x2[env] = x
-        self.y1[env] = self.y2[env] = y
+        self.back_x[env] = float(x)
+        self.back_y[env] = float(y)
         self.s_last[env] = float(s)
         self.next_lap_mark[env] = self.loop_length
         self.last_speed[env] = self.prev_block_v[env] = float(speed)
@@ -135,26 +134,31 @@ class DrivingMetricsBatch:
         envs, k = speed.shape
         if k == 0:
             return [_NO_INCIDENTS] * envs
-        x, y = xy[..., 0], xy[..., 1]
         # Geometry: velocity, acceleration and jerk (times dt, dt^2, dt^3) per step, and
         # the Menger curvature 2 |cross| / (|a| |b| |a + b|) of the last three positions
-        # (0 for a degenerate triple).
-        x_prev, y_prev = _shift(self.x2, x), _shift(self.y2, y)
-        vx, vy = x - x_prev, y - y_prev
-        lengths = hypot(vx, vy)
-        vx_prev, vy_prev = _shift(self.vx2, vx), _shift(self.vy2, vy)
-        ax, ay = vx - vx_prev, vy - vy_prev
-        raw_acc = hypot(ax, ay)
-        raw_jerk = hypot(ax - _shift(self.ax2, ax), ay - _shift(self.ay2, ay))
-        x_back, y_back = _shift(self.x1, x_prev), _shift(self.y1, y_prev)
-        den = _shift(self.l2, lengths) * lengths * hypot(x - x_back, y - y_back)
-        cross = np.abs(vx_prev * vy - vy_prev * vx)
+        # (0 for a degenerate triple). Positions with the three before the chunk (copies
+        # of the start before a reset), then their differences: each value is the one a
+        # step-by-step walk computes.
+        px = np.concatenate([self.back_x, xy[..., 0]], axis=1)  # (envs, k + 3)
+        py = np.concatenate([self.back_y, xy[..., 1]], axis=1)
+        vx, vy = px[:, 1:] - px[:, :-1], py[:, 1:] - py[:, :-1]  # [m + 2]: step m
+        ax, ay = vx[:, 1:] - vx[:, :-1], vy[:, 1:] - vy[:, :-1]  # [m + 1]: step m
+        # One pass of math.hypot over: the step lengths (and the one before), the
+        # accelerations, the jerks and the chords p[t] - p[t-2].
+        norms = hypot(np.concatenate([vx[:, 1:], ax[:, 1:], ax[:, 1:] - ax[:, :-1],
+                                      px[:, 3:] - px[:, 1:-2]], axis=1),
+                      np.concatenate([vy[:, 1:], ay[:, 1:], ay[:, 1:] - ay[:, :-1],
+                                      py[:, 3:] - py[:, 1:-2]], axis=1))
+        lengths_all = norms[:, :k + 1]
+        lengths = lengths_all[:, 1:]
+        raw_acc = norms[:, k + 1:2 * k + 1]
+        raw_jerk = norms[:, 2 * k + 1:3 * k + 1]
+        den = lengths_all[:, :-1] * lengths
+        den *= norms[:, 3 * k + 1:]
+        cross = np.abs(vx[:, 1:-1] * vy[:, 2:] - vy[:, 1:-1] * vx[:, 2:])
         cross *= 2.0
         curv = np.divide(cross, den, out=np.zeros_like(den), where=den != 0.0)
-        self.x1, self.y1 = x_prev[:, -1].copy(), y_prev[:, -1].copy()
-        self.x2, self.y2 = x[:, -1].copy(), y[:, -1].copy()
-        self.vx2, self.vy2, self.ax2, self.ay2 = vx[:, -1], vy[:, -1], ax[:, -1], ay[:, -1]
-        self.l2 = lengths[:, -1]
+        self.back_x, self.back_y = px[:, -3:].copy(), py[:, -3:].copy()
         t0 = self.steps.copy()
         early = t0 < 3
         if np.count_nonzero(early):
