@@ -105,10 +105,22 @@ class DrivingMetrics:
     def __init__(
         self, rules: IncidentRules, loop_length: float, extra_kinds: tuple[str, ...] = ()
     ) -> None:
-        self.batch = DrivingMetricsBatch(rules, loop_length, 1, extra_kinds)
-        self.rules = rules
-        self.loop_length = self.batch.loop_length
-        self.kinds: tuple[str, ...] = self.batch.kinds
+        self._attach(DrivingMetricsBatch(rules, loop_length, 1, extra_kinds), 0)
+
+    @classmethod
+    def view(cls, batch: DrivingMetricsBatch, env: int) -> DrivingMetrics:
+        """Env ``env`` of an existing batch, with this class's API (read it; the batch
+        records)."""
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        return made
+
+    def _attach(self, batch: DrivingMetricsBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.rules = batch.rules
+        self.loop_length = batch.loop_length
+        self.kinds: tuple[str, ...] = batch.kinds
         """Every incident kind this instance counts, in report order."""
 
     # ------------------------------------------------------------------ episode control
@@ -117,7 +129,7 @@ class DrivingMetrics:
 
         This is step 0 at time 0; it is not checked for incidents.
         """
-        self.batch.reset_at(0, x, y, s, d, speed)
+        self.batch.reset_at(self.env, x, y, s, d, speed)
 
     def record(
         self,
@@ -143,6 +155,8 @@ class DrivingMetrics:
         Returns:
             The incidents that began during these steps, in step order.
         """
+        if self.batch.envs != 1:
+            raise RuntimeError("record() of one env of a batch: record the batch")
         speed_a = np.asarray(speed, dtype=np.float64).reshape(1, -1)
         k = speed_a.shape[1]
         ids = None if collision_ids is None else np.asarray(collision_ids,
@@ -155,7 +169,7 @@ class DrivingMetrics:
 
     # ------------------------------------------------------------------ read-only results
     def _value(self, name: str) -> Any:
-        return getattr(self.batch, name)[0].item()
+        return getattr(self.batch, name)[self.env].item()
 
     @property
     def time(self) -> float:
@@ -185,17 +199,17 @@ class DrivingMetrics:
     @property
     def lap_times(self) -> list[float]:
         """Duration of each completed lap, s."""
-        return list(self.batch.lap_times[0])
+        return list(self.batch.lap_times[self.env])
 
     @property
     def incident_counts(self) -> dict[str, int]:
         """Incidents by kind; every kind of :attr:`kinds` is present."""
-        return dict(zip(self.kinds, self.batch.counts[0].tolist(), strict=True))
+        return dict(zip(self.kinds, self.batch.counts[self.env].tolist(), strict=True))
 
     @property
     def incidents(self) -> list[Incident]:
         """Every incident of the episode, in step order."""
-        return list(self.batch.incidents[0])
+        return list(self.batch.incidents[self.env])
 
     @property
     def distance_without_incident(self) -> float:
@@ -274,7 +288,7 @@ class DrivingMetrics:
         ``speed`` is the latest speed sample, ``acceleration``/``jerk`` the latest block
         and window values, ``raw_*`` the latest per-step magnitudes.
         """
-        return self.batch.step_info(0)
+        return self.batch.step_info(self.env)
 
     def summary(self) -> dict[str, Any]:
         """Episode summary of plain Python types (``json.dumps``-able).
@@ -282,4 +296,4 @@ class DrivingMetrics:
         Times in s, distances in m, speeds in m/s (plus ``mean_speed_mph``),
         accelerations in m/s^2, jerks in m/s^3. Lap statistics are ``None`` without laps.
         """
-        return self.batch.summary(0)
+        return self.batch.summary(self.env)

@@ -125,11 +125,22 @@ class HighwayTraffic:
 
     def __init__(self, road: HighwayMap, config: TrafficConfig | None = None,
                  dt: float = 0.02) -> None:
-        self.batch = TrafficBatch(road, config, envs=1, dt=dt)
-        self.road = road
-        self.config = self.batch.config
-        self.dt = self.batch.dt
-        self._clamp_lane = self.config.lateral_wander >= 0.45 * self.batch.lane_width
+        self._attach(TrafficBatch(road, config, envs=1, dt=dt), 0)
+
+    @classmethod
+    def view(cls, batch: TrafficBatch, env: int) -> HighwayTraffic:
+        """Env ``env`` of an existing batch, with this class's ``(n,)`` API."""
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        return made
+
+    def _attach(self, batch: TrafficBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.road = batch.road
+        self.config = batch.config
+        self.dt = batch.dt
+        self._clamp_lane = self.config.lateral_wander >= 0.45 * batch.lane_width
 
     # ------------------------------------------------------------------ public API
     def reset(self, rng: np.random.Generator, ego_s: float, ego_d: float,
@@ -140,7 +151,7 @@ class HighwayTraffic:
         ``ego_speed`` defaults to the original's start at rest. Raises ``ValueError`` if
         the cars cannot be placed within ``spawn_range``.
         """
-        self.batch.reset_at(0, rng, ego_s, ego_d, ego_speed)
+        self.batch.reset_at(self.env, rng, ego_s, ego_d, ego_speed)
 
     def reset_to(self, rng: np.random.Generator, ego_s: float, ego_d: float, ego_speed: float,
                  *, s: ArrayLike, lane: ArrayLike, speed: ArrayLike,
@@ -156,12 +167,12 @@ class HighwayTraffic:
             desired_speed: ``(n,)`` m/s; default: ``speed``.
             type_index: ``(n,)`` indices into :data:`VEHICLE_TYPES`; default: all cars.
         """
-        self.batch.reset_to_at(0, rng, ego_s, ego_d, ego_speed, s=s, lane=lane, speed=speed,
+        self.batch.reset_to_at(self.env, rng, ego_s, ego_d, ego_speed, s=s, lane=lane, speed=speed,
                                desired_speed=desired_speed, type_index=type_index)
 
     def samples_now(self) -> TrafficSamples:
         """The current state as a one-step :class:`TrafficSamples`."""
-        return _first(self.batch.samples_now())
+        return _row(self.batch.samples_now(), self.env)
 
     def advance(self, steps: int, ego_s: ArrayLike, ego_d: ArrayLike,
                 ego_speed: ArrayLike) -> TrafficSamples:
@@ -175,9 +186,11 @@ class HighwayTraffic:
         """
         if steps < 1:
             raise ValueError(f"steps must be >= 1; got {steps}")
-        return _first(self.batch.advance(steps, _as_frames(ego_s, steps),
+        if self.batch.envs != 1:
+            raise RuntimeError("advance() of one env of a batch: advance the batch")
+        return _row(self.batch.advance(steps, _as_frames(ego_s, steps),
                                          _as_frames(ego_d, steps),
-                                         _as_frames(ego_speed, steps)))
+                                         _as_frames(ego_speed, steps)), 0)
 
     # ------------------------------------------------------------------ state
     @property
@@ -185,7 +198,7 @@ class HighwayTraffic:
         return self.batch.state.cars
 
     def _row(self, name: str) -> Any:
-        view = getattr(self.batch.state, name)[0]
+        view = getattr(self.batch.state, name)[self.env]
         view.flags.writeable = False
         return view
 
@@ -206,11 +219,11 @@ class HighwayTraffic:
 
     @property
     def rogue_brake_count(self) -> int:
-        return int(self.batch.state.rogue_brake_count[0])
+        return int(self.batch.state.rogue_brake_count[self.env])
 
     @property
     def rogue_cut_in_count(self) -> int:
-        return int(self.batch.state.rogue_cut_in_count[0])
+        return int(self.batch.state.rogue_cut_in_count[self.env])
 
     @property
     def lane(self) -> IntArray:
@@ -221,8 +234,8 @@ class HighwayTraffic:
         return lane
 
 
-def _first(samples: TrafficSamples) -> TrafficSamples:
-    """Env 0 of a batch's samples: ``(frames, cars)`` arrays."""
-    return TrafficSamples._make(samples.s[0], samples.d[0], samples.speed[0], samples.x[0],
-                                samples.y[0], samples.heading[0], samples.vx[0],
-                                samples.vy[0])
+def _row(samples: TrafficSamples, env: int) -> TrafficSamples:
+    """Env ``env`` of a batch's samples: ``(frames, cars)`` arrays."""
+    return TrafficSamples._make(samples.s[env], samples.d[env], samples.speed[env],
+                                samples.x[env], samples.y[env], samples.heading[env],
+                                samples.vx[env], samples.vy[env])
