@@ -157,10 +157,13 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     def __init__(self, config: dict[str, Any] | None = None,
                  render_mode: str | None = None) -> None:
-        self.world = HighwayWorld(config, envs=1)
-        self.config = self.world.config
+        self._attach(HighwayWorld(config, envs=1), render_mode)
+
+    def _attach(self, world: HighwayWorld, render_mode: str | None) -> None:
+        """This env as the shell of ``world`` (a batch of one; the behavior env's too)."""
+        self.world = world
+        self.config = world.config
         self._init_render_mode(render_mode)
-        world = self.world
         self.road = world.road
         self.path_points = world.path_points
         self.steps_per_action = world.steps_per_action
