@@ -141,6 +141,11 @@ class ScriptedPath:
 
 
 # ---------------------------------------------------------------- scenarios
+def chain(digests: list[str]) -> str:
+    """One digest of a sequence of step digests."""
+    return hashlib.blake2b("".join(digests).encode(), digest_size=16).hexdigest()
+
+
 def scenarios() -> list[dict[str, Any]]:
     """Every recorded scenario: name, env id, config, seed, agent spec, max steps."""
     items: list[dict[str, Any]] = []

@@ -90,7 +90,7 @@ class HighwaySensors:
         which rows are present ``(envs, n)`` (a read-only array, shared between frames,
         when the sensor has no dropouts)."""
         fusion = np.stack([ids, x, y, vx, vy, s, d], axis=-1).astype(np.float64)
-        present = self._all_present
+        present = self._all_present[: len(ids)]
         if self._perfect:
             return fusion, present
         config = self.config
