@@ -19,8 +19,8 @@ from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.highway_world import HighwayWorld, incident_kinds
 from sdc_gym.stack.highway.decisions import ACTION_NAMES, DecisionExecutor, HighwayDecision
 from sdc_gym.stack.highway.features import BehaviorFeatures
-from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
-from sdc_gym.stack.highway.perception import Perception, PerceptionParameters
+from sdc_gym.stack.highway.motion import MotionBatch, MotionParameters, SeedMotionPlanner
+from sdc_gym.stack.highway.perception import Perception, PerceptionParameters, perceive_all
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import WorldModel
 from sdc_gym.vehicle.path_follower import PHYSICS_DT
@@ -86,7 +86,8 @@ class HighwayBehaviorWorld:
             latency_frames=self.world.latency_steps,
             path_length=min(MotionParameters.path_length, self.world.path_points))
         self.perception = [Perception(road, self.perception_params) for _ in range(envs)]
-        self.motion = [SeedMotionPlanner(road, self.motion_params) for _ in range(envs)]
+        self.motion_batch = MotionBatch(road, self.motion_params, envs)
+        self.motion = [SeedMotionPlanner.view(self.motion_batch, env) for env in range(envs)]
         self.executor = [DecisionExecutor(self.shield, slow_step_mps=float(cfg["slow_step_mps"]))
                          for _ in range(envs)]
         self.features = BehaviorFeatures(road.lane_count, self.perception_params.sensing_range)
@@ -114,7 +115,7 @@ class HighwayBehaviorWorld:
         self.executor[env].reset()
         self.decisions[env] = 0
         self.last_plans[env] = None
-        world = self.perception[env].perceive(self.world.observation(env), 0.0)
+        world = self._perceive(np.zeros(self.envs), [env])[0]
         self.world_models[env] = world
         self.observations[env] = self.features.encode(world, self.executor[env])
 
@@ -137,21 +138,26 @@ class HighwayBehaviorWorld:
         decisions = [self.decode(actions[env], env) for env in range(envs)]
         potentials = np.array([self.room_potential(env) for env in range(envs)])
         before = [(ex.lane_changes, ex.refused) for ex in self.executor]
+        plans = []
         for env in range(envs):
             world = self.world_models[env]
             assert world is not None
-            plan = self.executor[env].execute(world, decisions[env])
-            self.last_plans[env] = plan
-            path = self.motion[env].plan(self.world.observation(env), plan)
-            self._paths[env, :len(path)] = path
-            self._lengths[env] = len(path)
-        lengths = self.world.check_paths(self._paths, self._lengths)
+            plans.append(self.executor[env].execute(world, decisions[env]))
+        self.last_plans = plans
+        # The motion layer plans from the ego as observed (float32, like the single env's).
+        ego = self.world.ego_array().astype(np.float32)
+        paths, lengths = self.motion_batch.plan(
+            ego, [plan.target_lane for plan in plans], [plan.target_speed for plan in plans],
+            [plan.acceleration for plan in plans], [plan.replan for plan in plans],
+            [plan.steering for plan in plans])
+        self._paths[:, :paths.shape[1]] = paths
+        lengths = self.world.check_paths(self._paths, lengths)
         result = self.world.step(self._paths, lengths)
         self.decisions += 1
         reward = result.reward
+        models = self._perceive(self.decisions * self.decision_period_s)
         for env in range(envs):
-            world = self.perception[env].perceive(
-                self.world.observation(env), int(self.decisions[env]) * self.decision_period_s)
+            world = models[env]
             self.world_models[env] = world
             executor = self.executor[env]
             value = float(reward[env])
@@ -163,6 +169,18 @@ class HighwayBehaviorWorld:
             reward[env] = value
             self.observations[env] = self.features.encode(world, executor)
         return reward, result.terminated, result.truncated, result.incidents
+
+    def _perceive(self, times: FloatArray, rows: list[int] | None = None) -> list[WorldModel]:
+        """The world models of every env (or of ``rows``), from the observation as the
+        single env gives it (float32)."""
+        world = self.world
+        ego = world.ego_array().astype(np.float32)
+        fusion = world.fusion.astype(np.float32)
+        present = world.fusion_mask
+        if rows is not None:
+            ego, fusion, present, times = ego[rows], fusion[rows], present[rows], times[rows]
+        perceptions = self.perception if rows is None else [self.perception[e] for e in rows]
+        return perceive_all(perceptions, ego, fusion, present, times)
 
     def room_potential(self, env: int) -> float:
         """The shaping potential: weight x room ahead in the target lane / sensing range."""
