@@ -180,7 +180,7 @@ class HighwayBehaviorWorld:
         if rows is not None:
             ego, fusion, present, times = ego[rows], fusion[rows], present[rows], times[rows]
         perceptions = self.perception if rows is None else [self.perception[e] for e in rows]
-        return perceive_all(perceptions, ego, fusion, present, times)
+        return perceive_all(perceptions, ego, fusion, present, times, with_cars=False)
 
     def room_potential(self, env: int) -> float:
         """The shaping potential: weight x room ahead in the target lane / sensing range."""

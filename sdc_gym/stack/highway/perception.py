@@ -488,12 +488,14 @@ class Perception:
 
 
 def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
-                 present: NDArray[np.bool_], times: NDArray[np.float64]) -> list[WorldModel]:
+                 present: NDArray[np.bool_], times: NDArray[np.float64], *,
+                 with_cars: bool = True) -> list[WorldModel]:
     """One perception cycle of a batch of envs (one :class:`Perception`, with its tracks,
     per env; they share the road and parameters): ``ego`` ``(envs, 6)`` and ``fusion``
     ``(envs, cars, 7)`` as observed, ``present`` the rows sensed. The per-car work runs in
     the compiled kernels of :mod:`sdc_gym.stack.highway.perception_kernel` for every env
-    at once."""
+    at once. ``with_cars=False`` leaves ``WorldModel.cars`` empty (layers that read only the
+    lane views, the ego and the road: the executor, the shield, the features)."""
     first = perceptions[0]
     p = first.params
     envs, cars = fusion.shape[:2]
@@ -560,7 +562,8 @@ def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
             else:
                 lane_views, cars_seen = perception._empty_views, ()
         else:
-            cars_seen = tuple(map(_new_car, ids[env, :n].tolist(), s[env, :n].tolist(),
+            cars_seen = () if not with_cars else tuple(map(
+                _new_car, ids[env, :n].tolist(), s[env, :n].tolist(),
                                   d[env, :n].tolist(), speed[env, :n].tolist(),
                                   d_rate[env, :n].tolist(), car_lane[env, :n].tolist(),
                                   car_gap[env, :n].tolist()))
