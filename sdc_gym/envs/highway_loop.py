@@ -12,8 +12,10 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.perfect_controller import adopted_start, frames_of_motion
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS, TopDownRenderEnv
 from sdc_gym.geometry.collision import contact_reach_sq, first_contact
+from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
@@ -28,7 +30,6 @@ PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
 ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
 EGO_LENGTH_M = 4.7
 EGO_WIDTH_M = 1.9
-ON_POINT_M = 0.005  # m: a new path's point this close to the car is the one it stands on
 
 
 def _dataclass_defaults(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -89,9 +90,12 @@ class HighwayLoopEnv(TopDownRenderEnv):
     same). NaN and inf are never markers: a non-finite, non-numeric or out-of-bounds point
     raises ``ValueError`` naming the point. An empty path is allowed: the car stops dead.
 
-    When a path arrives, points before the one nearest the car are dropped (the original's
-    rule), and that one too if the car already stands on it (within 5 mm), so a planner
-    that resends its consumed points never stalls the car. A path takes effect
+    When a path arrives, points before the one nearest the car are dropped, and that one
+    too unless it is the path's first point and not exactly under the car (the original's
+    ``perfect_controller`` rule, :mod:`sdc_gym.envs.perfect_controller`), so a planner
+    that resends its consumed points never stalls the car. A path's last point is never
+    driven to: with one point left, the next frame removes it and the car stands still
+    (the previous path is then empty, like the original's). A path takes effect
     ``latency_steps`` physics frames after ``step`` is called; until then the car keeps
     consuming the old path. With the default ``latency_steps = steps_per_action`` it
     arrives at the end of the step, just before the observation (the original's
@@ -167,6 +171,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                             "speed": -1.0, "lane": -1.0, "off_road": -1.0},
         "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
+        "frenet": "original",        # telemetry s/d: "original" (waypoint polyline) | "exact"
         **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
     }
 
@@ -185,6 +190,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
                 "latency_steps", "None or an int >= 0", cfg["latency_steps"])
         require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
         require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
+                f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
 
         self.road: HighwayMap = get_highway_map(cfg["map"])
         traffic_cfg = dict(cfg["traffic"])
@@ -244,6 +251,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._all_rows_present = self.sensor_config.dropout_probability == 0.0
         self._reach_sq: NDArray[np.float64] | None = None  # contact reach per traffic car ...
         self._reach_version = -1  # ... for this traffic.sizes_version
+        # The telemetry's s/d convention (the Dict observation always has the exact ones).
+        self._telemetry_frenet = (self.road.original_frenet if cfg["frenet"] == "original"
+                                  else None)
         self._state_ready = False
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -256,7 +266,11 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._s = float(road.reference.wrap_s(start_s))
         self._d = float(start_d)
         self._xy = road.reference.to_xy(self._s, self._d).astype(np.float64)
-        self._yaw = float(road.reference.heading(self._s))
+        # The original's car faces +x at its start (yaw exactly 0 in the first telemetry)
+        # until a path turns it; our own maps, and a start set in the config, face the road.
+        at_map_start = self.config["start_s"] is None and self.config["start_d"] is None
+        self._yaw = (road.start_heading() if at_map_start
+                     else float(road.reference.heading(self._s)))
         self._speed = 0.0
         self._path = self._empty_path
         self._path_start = 0
@@ -375,25 +389,15 @@ class HighwayLoopEnv(TopDownRenderEnv):
         return s[:frames], d[:frames]
 
     def _apply_path(self, path: NDArray[np.float64]) -> None:
-        """Adopt a newly arrived path, dropping the points before the one nearest the car.
-
-        A nearest point the car already stands on (within ``ON_POINT_M``: more than the
-        7-significant-digit rounding of echoed points, less than the seed's smallest 9 mm
-        step) is dropped too:
-        the car consumed it, and placing the car on it again would be a frame at zero
-        speed. That happens every cycle with latency, because a planner's path starts with
-        the points the car consumed while the reply was on its way.
-        """
+        """Adopt a newly arrived path by the original's rule
+        (:func:`~sdc_gym.envs.perfect_controller.adopted_start`): the points before the
+        one nearest the car are dropped, and that one too unless it is the first point
+        and not exactly under the car. A planner that resends the points the car consumed
+        while its reply was on the way so never stalls the car."""
         if len(path) == 0:
             self._path, self._path_start = self._empty_path, 0
             return
-        offset = path - self._xy  # squared distances: np.sum(offset**2, axis=1), in
-        offset *= offset          # cheaper calls (the same two-term sums)
-        distance_sq = offset[:, 0] + offset[:, 1]
-        nearest = int(distance_sq.argmin())
-        if distance_sq[nearest] <= ON_POINT_M**2:
-            nearest += 1
-        self._path, self._path_start = path, nearest
+        self._path, self._path_start = path, adopted_start(path, self._xy)
 
     def _drive_ego(self, frames: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                NDArray[np.float64]]:
@@ -411,7 +415,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
             if pending:
                 horizon = min(horizon, pending[0][0] - self._frame)
             path, first = self._path, self._path_start
-            moves = min(horizon, max(len(path) - first - 1, 0))
+            moves, discard_last = frames_of_motion(len(path) - first, horizon)
             if moves:
                 stop = first + moves
                 track[done + 1:done + 1 + moves] = path[first:stop]
@@ -420,6 +424,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
                 self._path_start = stop
                 self._xy = path[stop - 1]
                 self._yaw = float(yaw[done + moves - 1])
+            if discard_last:  # one point left: a frame removes it, the car stands still
+                self._path_start = len(path)
             if moves < horizon:
                 # Path exhausted: the car stands where it is (the original's stop dead).
                 track[done + 1 + moves:done + 1 + horizon] = self._xy
@@ -484,7 +490,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
             info["telemetry"] = TelemetryMessage(
                 *self._xy.tolist(), self._yaw, self._speed, self._s, self._d,
                 self._remaining_path(), *self._end_sd,
-                self._fusion if self._all_rows_present else self._fusion[self._fusion_mask])
+                self._fusion if self._all_rows_present else self._fusion[self._fusion_mask],
+                self._telemetry_frenet)
         return info
 
     def summary(self) -> dict[str, Any]:
