@@ -37,11 +37,12 @@ def test_telemetry_frame_is_the_originals_flat_object_with_7_significant_digits(
     assert encode_telemetry(START) == (
         '42["telemetry",{"x":909.48,"y":1128.67,"yaw":0,"speed":0,"s":124.8336,'
         '"d":6.164833,"previous_path_x":[],"previous_path_y":[],"end_path_s":0,'
-        '"end_path_d":0,"sensor_fusion":[[0,1000.5,1128.7,10.25,-0,200.1235,6]]}]')
+        '"end_path_d":0,"sensor_fusion":[[0,1000.5,1128.7,10.25,0,200.1235,6]]}]')
     message = dict(START, previous_path_x=[1.0 / 3.0, 1234567.89],
                    previous_path_y=[2e-7, -5.5])
     text = encode_telemetry(message)
-    assert '"previous_path_x":[0.3333333,1234568],"previous_path_y":[2e-07,-5.5]' in text
+    # C#'s float.ToString(): an upper-case exponent, no sign on a zero.
+    assert '"previous_path_x":[0.3333333,1234568],"previous_path_y":[2E-07,-5.5]' in text
 
 
 def test_env_telemetry_survives_the_templates_hasData_and_json():
