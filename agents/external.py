@@ -235,11 +235,18 @@ def fixed_port_workers(args: argparse.Namespace, agents: list[str], workers: int
     return 1 if fixed and workers > 1 else workers
 
 
+EXTERNAL_PATH_POINTS: Final = 500
+"""Points an external planner may send (10 s of path): the original takes paths of any
+length, and some planners send more than the env's default of 50."""
+
+
 def external_env_config(env_config: dict[str, Any]) -> dict[str, Any]:
-    """The env config for an external planner: like the original, a collision is counted
-    and the car drives on (``terminate_on_collision`` off) unless the config says
-    otherwise."""
-    return {"terminate_on_collision": False, **env_config}
+    """The env config for an external planner, where the config does not say otherwise:
+    like the original, a collision is counted and the car drives on
+    (``terminate_on_collision`` off), and paths of up to :data:`EXTERNAL_PATH_POINTS`
+    points are taken."""
+    return {"terminate_on_collision": False, "path_points": EXTERNAL_PATH_POINTS,
+            **env_config}
 
 
 def planner_maps(args: argparse.Namespace, road: Any) -> contextlib.ExitStack:

@@ -106,8 +106,9 @@ class Walkthrough:
             ptsx.append(x)
             ptsy.append(y)
         cos_r, sin_r = math.cos(-ref_yaw), math.sin(-ref_yaw)
-        local_x = [(x - ref_x) * cos_r - (y - ref_y) * sin_r for x, y in zip(ptsx, ptsy)]
-        local_y = [(x - ref_x) * sin_r + (y - ref_y) * cos_r for x, y in zip(ptsx, ptsy)]
+        shifted = [(x - ref_x, y - ref_y) for x, y in zip(ptsx, ptsy, strict=True)]
+        local_x = [x * cos_r - y * sin_r for x, y in shifted]
+        local_y = [x * sin_r + y * cos_r for x, y in shifted]
         spline = CubicSpline(local_x, local_y, bc_type="natural")  # x must increase
 
         next_x, next_y = previous_x, previous_y
@@ -158,7 +159,7 @@ class AbortOnFailure:
     def plan(self, telemetry: dict[str, Any]) -> tuple[list[float], list[float]]:
         try:
             return self.brain.plan(telemetry)
-        except Exception:  # noqa: BLE001 - any failure aborts, as assert() does
+        except Exception:  # any failure aborts, as assert() does
             traceback.print_exc()
             print("Assertion failed: planning (the spline's x must increase)", flush=True)
             os._exit(134)
