@@ -275,3 +275,51 @@ def test_no_planner_outlives_a_parent_killed_without_warning(tmp_path):
     finally:
         parent.kill()
         parent.stdout.close()
+
+
+def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_path):
+    """The same planner command in two folders (--planner-cwd per external agent): each
+    reads the env's map from its own folder; a folder whose file holds the same numbers
+    (printed differently) is not touched, one with another map gets the env's for the
+    run and its own back after; the two logs do not overwrite each other."""
+    from sdc_gym.bridge.map_file import map_text
+    from sdc_gym.road.builtin_highways import get_highway_map
+
+    same, other = tmp_path / "same", tmp_path / "other"
+    same.mkdir()
+    other.mkdir()
+    oval = get_highway_map("oval")
+    (same / "highway_map.csv").write_text(  # the oval, with more digits and commas
+        "\n".join(",".join(f"{value:.10f}" for value in row) for row in oval.waypoints))
+    (other / "highway_map.csv").write_text(map_text(get_highway_map("default")))
+    before = {folder: (folder / "highway_map.csv").read_bytes() for folder in (same, other)}
+    stamp = (same / "highway_map.csv").stat().st_mtime_ns
+    planner = external("--map", "highway_map.csv")
+    planner_b = external("--map", "./highway_map.csv")  # the same planner, named apart
+    output = tmp_path / "run"
+    result = evaluate.main(["--agents", planner, planner_b, "--config",
+                            str(Path(evaluate.__file__).parent / "configs/highway_oval.yaml"),
+                            "--planner-cwd", str(same), str(other), "--planner-map",
+                            "highway_map.csv", "--reply-latency", "5", "--seeds", "1",
+                            "--no-plots", "--no-progress", "--workers", "1",
+                            "--output", str(output)])
+    rows = {row["agent"]: row for row in result["rows"]}
+    assert rows[planner]["laps"] == rows[planner_b]["laps"] == 1  # both drove the oval
+    assert rows[planner]["mean_lap_time"] == pytest.approx(rows[planner_b]["mean_lap_time"])
+    for folder in (same, other):
+        assert (folder / "highway_map.csv").read_bytes() == before[folder]
+        assert sorted(path.name for path in folder.iterdir()) == ["highway_map.csv"]
+    assert (same / "highway_map.csv").stat().st_mtime_ns == stamp  # never rewritten
+    logs = sorted(path.name for path in (output / "planner_logs").iterdir())
+    assert len(logs) == 2 and logs[0] != logs[1]
+    with pytest.raises(SystemExit):  # two folders for one external agent
+        evaluate.main(["--agents", planner, "--planner-cwd", str(same), str(other),
+                       "--output", str(output)])
+
+
+def test_external_planners_drive_on_after_a_collision_unless_configured():
+    from agents.external import EXTERNAL_PATH_POINTS, external_env_config
+
+    assert external_env_config({}) == {"terminate_on_collision": False,
+                                       "path_points": EXTERNAL_PATH_POINTS}
+    assert external_env_config({"terminate_on_collision": True})["terminate_on_collision"]
