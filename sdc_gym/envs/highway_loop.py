@@ -65,7 +65,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
     so the spacing of the points is the speed. A path that runs out stops the car dead,
     which reads as an enormous acceleration. A planner written for the original therefore
     drives here unchanged: the observation carries the original's telemetry fields and
-    ``info["telemetry"]`` the exact telemetry object the original would send.
+    ``info["telemetry"]`` the telemetry object the original would send, in the original's
+    conventions (see "Telemetry" below).
 
     Traffic (12 cars by default) is simulated with numpy arrays: IDM car following, lane
     changes when the target lane is clear by +-20 m, desired speeds of 40-50 mph for cars
@@ -118,7 +119,25 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
     at the loop length); d is the offset to the right of the yellow centre line, so lane
-    ``i`` is centred at ``d = 2 + 4 i``.
+    ``i`` is centred at ``d = 2 + 4 i``. The observation is always in this exact frame:
+    the env's own agents (the FSM planner, the behavior envs' perception, the committed
+    policies) read it, whatever the ``frenet`` setting.
+
+    ## Telemetry
+
+    ``info["telemetry"]`` (with ``telemetry_info``, the default) is the flat object the
+    original sends in ``42["telemetry",{...}]``, field for field: x, y (m), yaw (degrees,
+    counter-clockwise from +x, in [0, 360)), speed (mph), s, d, previous_path_x/y (the
+    unconsumed points), end_path_s/d (of the last unconsumed point; 0, 0 when there is
+    none), sensor_fusion rows ``[id, x, y, vx, vy, s, d]`` with ids the fixed slots
+    ``0..C-1``; every number a 32-bit float rounded to 7 significant digits. With
+    ``frenet: original`` (the default) its s and d are the original's: along the waypoint
+    polyline of the map file (``CarAIControl.getFrenetFrame``, wrapping at the file's loop
+    length, 6945.554 m on the original map; end_path from the ego car's closest waypoint),
+    see :mod:`sdc_gym.geometry.original_frenet`; ``frenet: exact`` sends the exact ones of
+    the observation instead. On the original map the first message reads x 909.48,
+    y 1128.67, yaw 0, speed 0, s 124.8337, d 6.164966: the original's start (s 124.8336,
+    d 6.164833) within the 7-digit rounding of the map file's waypoints.
 
     ## Rewards
 
@@ -128,13 +147,17 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     ## Starting State
 
-    The ego car stands still in the middle lane at s = 124.8 m (the original's start),
-    facing along the road, with an empty path. Traffic is placed around it from the seed.
+    The ego car stands still in the middle lane at s = 124.8 m (the original's start) with
+    an empty path: on the original map at (909.48, 1128.67) facing +x (yaw 0) like the
+    original's car, on the built-in maps (and at a ``start_s``/``start_d`` of the config)
+    facing along the road. It keeps that heading until a path moves it. Traffic is placed
+    around it from the seed.
 
     ## Episode End
 
-    Terminated: a collision when ``terminate_on_collision`` (default; set it False to
-    count collisions and drive on, like the original), or ``laps`` laps completed
+    Terminated: a collision when ``terminate_on_collision`` (default, for RL; set it False
+    to count collisions and drive on, like the original and like ``evaluate.py`` does for
+    external planners), or ``laps`` laps completed
     (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
     carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
     distance without incident, and ``incident_log``: each incident's kind, time, step,
