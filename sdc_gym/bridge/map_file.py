@@ -69,13 +69,7 @@ def export_highway_map(highway: HighwayMap | str, output: str | os.PathLike[str]
         backup = path.with_name(path.name + ".orig")
         if keep_original and not backup.exists():
             os.replace(path, backup)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        tmp.write_text(text, encoding="utf-8")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    _write_atomically(path, text.encode("utf-8"))
     return path
 
 

@@ -27,7 +27,6 @@ m); a simulator reporting its own smooth arc length (6947.43 m around) puts cars
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from collections import deque
@@ -40,7 +39,7 @@ if __package__ in (None, ""):  # run as a script: make ``tests.planners`` import
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from tests.planners.map_helpers import MapFile, s_ahead
+from tests.planners.map_helpers import MapFile, planner_command_line, s_ahead
 from tests.planners.protocol_planner import Planner, serve
 
 DT = 0.02
@@ -206,11 +205,7 @@ class FrenetPlanner:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--port", type=int, default=4567)
-    parser.add_argument("--map", default="../data/highway_map.csv", help="relative to the cwd")
-    args = parser.parse_args()
+    args = planner_command_line(__doc__)
     serve(Planner(FrenetPlanner(MapFile.load(args.map)), "none", 0), args.port)
 
 

@@ -10,6 +10,7 @@ code, so neither do these stand-ins: the helpers are written out here, from the 
 
 from __future__ import annotations
 
+import argparse
 import bisect
 import math
 from dataclasses import dataclass
@@ -60,3 +61,13 @@ class MapFile:
 def s_ahead(s_from: float, s_to: float, max_s: float) -> float:
     """``s_to - s_from`` folded into ``[-max_s / 2, max_s / 2)`` (the loop's seam)."""
     return (s_to - s_from + max_s / 2) % max_s - max_s / 2
+
+
+def planner_command_line(description: str | None) -> argparse.Namespace:
+    """The stand-ins' command line, the template's two settings: ``--port`` (4567) and
+    ``--map`` (``../data/highway_map.csv``, relative to the working folder)."""
+    parser = argparse.ArgumentParser(description=description,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--port", type=int, default=4567)
+    parser.add_argument("--map", default="../data/highway_map.csv", help="relative to the cwd")
+    return parser.parse_args()

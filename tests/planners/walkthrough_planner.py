@@ -39,7 +39,6 @@ A failure in planning (the spline's) ends the process with code 134, as the C++ 
 
 from __future__ import annotations
 
-import argparse
 import math
 import os
 import sys
@@ -52,7 +51,7 @@ if __package__ in (None, ""):  # run as a script: make ``tests.planners`` import
 
 from scipy.interpolate import CubicSpline
 
-from tests.planners.map_helpers import MapFile, s_ahead
+from tests.planners.map_helpers import MapFile, planner_command_line, s_ahead
 from tests.planners.protocol_planner import Planner, serve
 
 PATH_POINTS = 50
@@ -166,13 +165,8 @@ class AbortOnFailure:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--port", type=int, default=4567)
-    parser.add_argument("--map", default="../data/highway_map.csv", help="relative to the cwd")
-    args = parser.parse_args()
-    brain = AbortOnFailure(Walkthrough(MapFile.load(args.map)))
-    serve(Planner(brain, "none", 0), args.port)
+    args = planner_command_line(__doc__)
+    serve(Planner(AbortOnFailure(Walkthrough(MapFile.load(args.map))), "none", 0), args.port)
 
 
 if __name__ == "__main__":
