@@ -59,12 +59,19 @@ class OriginalFrenet:
         if rows.ndim != 2 or rows.shape[1] < 5 or len(rows) < 3:
             raise ValueError(f"waypoints must be (n >= 3, 5) rows x y s dx dy, got {rows.shape}")
         object.__setattr__(self, "waypoints", rows)
+        # Per waypoint i, as the previous one of a chord i -> i + 1: its x, y, s, the chord
+        # vector, its squared length and length; and the road's direction (-dy, dx) at i
+        # (the next-waypoint test). One gather per call instead of a dozen.
+        chord = np.roll(rows[:, :2], -1, axis=0) - rows[:, :2]
+        length_sq = (chord**2).sum(axis=1)
+        object.__setattr__(self, "_chords", np.column_stack(
+            [rows[:, :3], chord, length_sq, np.sqrt(length_sq)]))
+        object.__setattr__(self, "_direction", np.column_stack([-rows[:, 4], rows[:, 3]]))
 
     @property
     def loop_length(self) -> float:
         """The polyline's length: the last waypoint's s plus the closing chord."""
-        last, first = self.waypoints[-1], self.waypoints[0]
-        return float(last[2] + np.hypot(first[0] - last[0], first[1] - last[1]))
+        return float(self._chords[-1, 2] + self._chords[-1, 6])
 
     def closest_waypoint(self, xy: ArrayLike) -> NDArray[np.intp]:
         """Index of the waypoint nearest each (x, y) (Euclidean; the first one on ties)."""
@@ -81,23 +88,18 @@ class OriginalFrenet:
         one per point or one for all (default: each point itself).
         """
         xy = np.asarray(xy, dtype=np.float64).reshape(-1, 2)
-        anchor = xy if anchor_xy is None else np.broadcast_to(
-            np.asarray(anchor_xy, dtype=np.float64).reshape(-1, 2), xy.shape)
-        w = self.waypoints
-        count = len(w)
-        closest = self.closest_waypoint(anchor)
-        cx, cy = w[closest, 0], w[closest, 1]
-        # Beyond the closest waypoint along the road's direction there (-dy, dx)?
-        beyond = (cx - xy[:, 0]) * -w[closest, 4] + (cy - xy[:, 1]) * w[closest, 3] < 0
-        next_wp = np.where(beyond, (closest + 1) % count, closest)
-        prev_wp = (next_wp - 1) % count
-        px, py = w[prev_wp, 0], w[prev_wp, 1]
-        chord_x, chord_y = w[next_wp, 0] - px, w[next_wp, 1] - py
-        rel_x, rel_y = xy[:, 0] - px, xy[:, 1] - py
-        along = (rel_x * chord_x + rel_y * chord_y) / (chord_x * chord_x + chord_y * chord_y)
-        proj_x, proj_y = along * chord_x, along * chord_y
-        d = np.hypot(rel_x - proj_x, rel_y - proj_y)
-        left = chord_x * rel_y - chord_y * rel_x > 0  # left of travel: d < 0
-        d = np.where(left, -d, d)
-        s = w[prev_wp, 2] + np.hypot(proj_x, proj_y)  # |projection|: never subtracted
+        closest = self.closest_waypoint(xy if anchor_xy is None else anchor_xy)
+        # Beyond the closest waypoint along the road's direction there?
+        offset = self.waypoints[closest, :2] - xy
+        beyond = (offset * self._direction[closest]).sum(axis=1) < 0
+        prev_wp = np.where(beyond, closest, closest - 1) % len(self.waypoints)
+        table = self._chords[prev_wp]
+        rel = xy - table[:, :2]
+        chord = table[:, 3:5]
+        along = (rel * chord).sum(axis=1) / table[:, 5]
+        normal = rel - along[:, None] * chord
+        d = np.sqrt((normal**2).sum(axis=1))
+        left = chord[:, 0] * rel[:, 1] - chord[:, 1] * rel[:, 0] > 0  # left of travel: d < 0
+        d[left] *= -1.0
+        s = table[:, 2] + np.abs(along) * table[:, 6]  # |projection|: never subtracted
         return s, d

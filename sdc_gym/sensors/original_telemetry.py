@@ -36,15 +36,18 @@ def original_frenet_fields(
     ``previous_path`` holds the unconsumed points ``(m, 2)``; ``sensor_fusion`` the present
     rows ``[id, x, y, vx, vy, s, d]`` (a converted copy is returned).
     """
-    ego = np.array([[x, y]])
-    has_end = len(previous_path) > 0
-    points = np.concatenate([ego, previous_path[-1:]]) if has_end else ego
-    s, d = frenet.convert(points, ego)  # the ego anchors its own s, d and its path's end
-    end_s, end_d = (float(s[1]), float(d[1])) if has_end else (0.0, 0.0)
     fusion = np.array(sensor_fusion, dtype=np.float64).reshape(-1, 7)
+    has_end = len(previous_path) > 0
+    # One conversion for all: the ego, the path's end (both anchored at the ego: the
+    # original converts them in the ego car's script), then each car at its own position.
+    ego = np.array([[x, y]])
+    points = np.concatenate([ego, previous_path[-1:], fusion[:, 1:3]])
+    anchors = np.concatenate([ego, ego[:int(has_end)], fusion[:, 1:3]])
+    s, d = frenet.convert(points, anchors)
+    end_s, end_d = (float(s[1]), float(d[1])) if has_end else (0.0, 0.0)
     if len(fusion):
+        first = 1 + int(has_end)
         faulty = (fusion[:, 5] == 0.0) & (fusion[:, 6] == 0.0)
-        car_s, car_d = frenet.convert(fusion[:, 1:3])
-        fusion[:, 5] = np.where(faulty, 0.0, car_s)
-        fusion[:, 6] = np.where(faulty, 0.0, car_d)
+        fusion[:, 5] = np.where(faulty, 0.0, s[first:])
+        fusion[:, 6] = np.where(faulty, 0.0, d[first:])
     return float(s[0]), float(d[0]), end_s, end_d, fusion
