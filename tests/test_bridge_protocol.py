@@ -157,3 +157,24 @@ def test_export_command_keeps_a_planners_own_map_and_skips_identical_writes(tmp_
     with pytest.raises(SystemExit):
         export_main(["--map", "nowhere", "--output", str(data)])
     assert "neither a built-in" in capsys.readouterr().err
+
+
+def test_planner_map_leaves_the_planners_file_as_it_found_it(tmp_path):
+    from sdc_gym.bridge import PlannerMap
+
+    oval = get_highway_map("oval")
+    target = tmp_path / "data" / "highway_map.csv"
+    with PlannerMap(oval, target) as path:  # no file: written, then removed
+        assert load_highway_map(path).waypoints.shape == oval.waypoints.shape
+    assert not target.exists()
+    own = "784.6001 1135.571 0 -0.02359831 -0.9997216\n" * 4
+    target.write_text(own)
+    with PlannerMap(oval, target):  # another map: replaced for the block, then restored
+        assert target.read_text() != own
+    assert target.read_text() == own
+    same = "\n".join(" ".join(f"{value:.9e}" for value in row) for row in oval.waypoints)
+    target.write_text(same)
+    stamp = target.stat().st_mtime_ns
+    with PlannerMap(oval, target):  # the same numbers, printed otherwise: untouched
+        pass
+    assert target.read_text() == same and target.stat().st_mtime_ns == stamp
