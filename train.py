@@ -37,7 +37,7 @@ import gymnasium as gym
 import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents.evaluation import atomic_write_text
+from evaluation.files import atomic_write_text
 
 ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"

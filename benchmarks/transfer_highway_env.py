@@ -40,7 +40,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.evaluation import atomic_write_text
+from evaluation.files import atomic_write_text
 from agents.highway_env_adapter import (
     IDLE,
     META_ACTION_NAMES,
