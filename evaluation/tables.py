@@ -60,10 +60,12 @@ class TableData:
 
     def rich(self) -> Table:
         table = Table(title=self.title, caption=self.caption, box=box.SIMPLE_HEAD,
-                      pad_edge=False, title_justify="left", caption_justify="left")
-        for header in self.headers:
-            table.add_column(header, justify="left" if header in self.left else "right",
-                             overflow="fold")
+                      show_edge=False, pad_edge=False, title_justify="left",
+                      caption_justify="left")
+        for header in self.headers:  # the names give way (fold) before any figure
+            left = header in self.left
+            table.add_column(header, justify="left" if left else "right", overflow="fold",
+                             no_wrap=not left)
         for row in self.rows:
             table.add_row(*row)
         return table
@@ -114,10 +116,10 @@ def rate_with_interval(value: float | None, ci: Sequence[float] | None) -> str:
 
 def key_table(rows: list[dict[str, Any]], title: str) -> TableData:
     """The key columns with their 95 % intervals (fits 80 columns; see the caption)."""
-    table = _table(title, caption="95% CI: bootstrap over seeds (incidents: Garwood); "
-                              "--wide: all columns")
+    table = _table(title, caption="95% CI: bootstrap over seeds; incidents per 100 miles: "
+                              "Garwood; --wide: all columns")
     for header, left in (("agent", True), ("n", False), ("mph [95% CI]", False),
-                         ("lap s [95% CI]", False), ("incidents/100 mi", False)):
+                         ("lap s [95% CI]", False), ("incidents/100mi", False)):
         _column(table, header, left)
     for row in rows:
         table.add_row(
