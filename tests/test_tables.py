@@ -51,7 +51,7 @@ def test_the_tables_fit_80_columns_without_cutting_a_figure(analysis):
     assert "…" not in text
     rows = {row["label"]: row for row in analysis.rows}
     assert list(rows) == ["fsm_conservative", "dbw_original_follower", "dqn:dqn_highway"]
-    for label, row in rows.items():
+    for row in rows.values():
         low, high = row["mean_speed_mph_ci"]
         whole = f"{row['mean_speed_mph']:.2f} [{low:.2f}, {high:.2f}]"
         assert any(whole in line for line in lines), whole  # an interval is never folded
