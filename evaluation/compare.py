@@ -100,6 +100,6 @@ def compare_main(folders: Sequence[Path], console: Console, wide: bool = False,
             title=title, settings=[("runs", " ".join(map(str, folders)))],
             tables=analysis.tables(title), verdicts=verdict_lines(analysis.comparisons),
             notes=warnings, plots=images)))
-        console.print("written: " + ", ".join(map(str, written)), markup=False,
-                      highlight=False)
+        console.print(f"written to {output}: " + ", ".join(path.name for path in written),
+                      markup=False, highlight=False)
     return {"rows": analysis.rows, "comparisons": analysis.comparisons, "files": written}

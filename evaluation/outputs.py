@@ -42,7 +42,11 @@ class PlotOptions:
 def write_run(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
               title: str, settings: list[tuple[str, str]], run: dict[str, Any],
               plot_options: PlotOptions | None) -> list[Path]:
-    """Write the run folder's files (no plots when ``plot_options`` is None); their paths."""
+    """Write the run folder's files (no plots when ``plot_options`` is None); their paths.
+
+    ``title`` heads the tables (env, seeds, laps); ``settings`` are the report's key-value
+    lines; ``run`` goes into ``summary.json`` (with the statistics' settings).
+    """
     written = files.write_results(output, episodes, analysis.rows,
                                   [c.as_dict() for c in analysis.comparisons],
                                   {**run, "statistics": analysis.settings.as_dict()})
@@ -50,7 +54,8 @@ def write_run(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
         written.append(output / files.TRACES_FILE)
     if files.write_incident_reports(output / files.INCIDENTS_FILE, episodes):
         written.append(output / files.INCIDENTS_FILE)
-    report = Report(title=title, settings=settings, tables=analysis.tables(title),
+    report = Report(title=f"sdc-gym evaluation: {output.resolve().name}", settings=settings,
+                    tables=analysis.tables(title),
                     verdicts=verdict_lines(analysis.comparisons))
     if plot_options is not None:
         figures = write_plots(output, episodes, analysis, plot_options)

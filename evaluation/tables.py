@@ -116,8 +116,8 @@ def rate_with_interval(value: float | None, ci: Sequence[float] | None) -> str:
 
 def key_table(rows: list[dict[str, Any]], title: str) -> TableData:
     """The key columns with their 95 % intervals (fits 80 columns; see the caption)."""
-    table = _table(title, caption="95% CI: bootstrap over seeds; incidents per 100 miles: "
-                              "Garwood; --wide: all columns")
+    table = _table(title, caption="95% CI: bootstrap over seeds; incidents: Garwood; "
+                              "--wide: all")
     for header, left in (("agent", True), ("n", False), ("mph [95% CI]", False),
                          ("lap s [95% CI]", False), ("incidents/100mi", False)):
         _column(table, header, left)
