@@ -99,7 +99,7 @@ def test_the_report_is_one_self_contained_file(run):
 
 
 def test_the_report_renders_in_chromium(run, tmp_path):
-    output, result = run
+    output, _ = run
     uri = (output / "report.html").as_uri()
     dom = chromium(tmp_path, "--dump-dom", uri)
     decoded, total = images_decoded(dom)
