@@ -13,9 +13,9 @@
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
 each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
-incidents by kind when there are any, and one verdict per agent pair ("fsm_bold faster
-than lane_keeping by 4.3 mph [3.9, 4.8], P(improvement) 1.00"; "no clear difference" when
-the interval spans 0). ``--wide`` prints every column in one table instead.
+incidents by kind when there are any, and one verdict per agent pair ("A faster than B
+by D mph [low, high], P(improvement) p"; "no clear difference" when the interval spans 0).
+``--wide`` prints every column in one table instead.
 
 Each run gets a new folder results/<date>_<time> (results/latest links to the newest);
 ``--output DIR`` writes to DIR instead, refusing a non-empty one unless ``--overwrite``.

@@ -83,10 +83,6 @@ class Interval:
     def has_interval(self) -> bool:
         return self.low is not None and self.high is not None
 
-    def excludes(self, reference: float) -> bool:
-        """Whether the interval lies wholly above or below ``reference`` (a clear result)."""
-        return self.has_interval and (self.low > reference or self.high < reference)  # type: ignore[operator]
-
     def ci(self) -> list[float] | None:
         return [self.low, self.high] if self.has_interval else None  # type: ignore[list-item]
 

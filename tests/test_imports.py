@@ -10,6 +10,7 @@ is a module, else ``package`` itself.
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,7 @@ PACKAGES = ("sdc_gym", "agents", "evaluation")
 SCRIPTS = ("evaluate", "train")
 
 
+@cache
 def module_files() -> dict[str, Path]:
     modules = {name: ROOT / f"{name}.py" for name in SCRIPTS}
     for package in PACKAGES:
@@ -34,6 +36,7 @@ def _is_package(path: Path) -> bool:
     return path.name == "__init__.py"
 
 
+@cache
 def import_graph() -> dict[str, set[str]]:
     """Module -> the project modules it imports."""
     modules = module_files()
