@@ -16,9 +16,10 @@ from typing import Any
 
 from rich.console import Console
 
-from evaluation import files, plots, statistics
+from evaluation import files, statistics
 from evaluation.analysis import Analysis, analyse, same_agent_pairs, terminal_output
-from evaluation.report import REPORT_FILE, Report, ReportImage, write_report
+from evaluation.outputs import summary_plots
+from evaluation.report import REPORT_FILE, Report, write_report
 from evaluation.summary import unique_labels
 from evaluation.tables import verdict_lines
 
@@ -88,13 +89,7 @@ def compare_main(folders: Sequence[Path], console: Console, wide: bool = False,
         written = files.write_results(output, episodes, analysis.rows, comparisons,
                                       {"compared": [str(f) for f in folders],
                                        "statistics": settings.as_dict()})
-        images = [
-            ReportImage(plots.save_figure(plots.means_figure(analysis.rows, analysis.samples),
-                                          output / plots.MEANS_FILE),
-                        "mean speed and lap time per run and agent, 95 % bootstrap intervals"),
-            ReportImage(plots.save_figure(plots.incidents_figure(analysis.rows),
-                                          output / plots.INCIDENTS_FILE),
-                        "incidents by kind, with the rate per 100 miles [95 % interval]")]
+        images = summary_plots(output, analysis)
         written += [image.path for image in images]
         written.append(write_report(output / REPORT_FILE, Report(
             title=title, settings=[("runs", " ".join(map(str, folders)))],

@@ -82,10 +82,9 @@ def _gallery_caption(report: dict[str, Any], labels: dict[str, str]) -> str:
             f"{report['kind']} at {report.get('time', 0.0):.2f} s")
 
 
-def write_plots(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
-                options: PlotOptions) -> list[ReportImage]:
-    """The plots as files, with their captions for the report."""
-    images = [
+def summary_plots(output: Path, analysis: Analysis) -> list[ReportImage]:
+    """``means.png`` and ``incidents.png`` (a run's or runs side by side), with captions."""
+    return [
         ReportImage(plots.save_figure(plots.means_figure(analysis.rows, analysis.samples),
                                       output / plots.MEANS_FILE),
                     "mean speed and lap time per agent, 95 % bootstrap intervals"),
@@ -93,6 +92,12 @@ def write_plots(output: Path, episodes: list[dict[str, Any]], analysis: Analysis
                                       output / plots.INCIDENTS_FILE),
                     "incidents by kind, with the rate per 100 miles [95 % Garwood interval]"),
     ]
+
+
+def write_plots(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
+                options: PlotOptions) -> list[ReportImage]:
+    """The plots as files, with their captions for the report."""
+    images = summary_plots(output, analysis)
     seeds = [episode["seed"] for episode in episodes]
     seed = options.plot_seed if options.plot_seed is not None else (seeds[0] if seeds else 0)
     traces = profiles.traces_for_seed(episodes, seed, analysis.labels)

@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
 from evaluation.files import atomic_write_bytes
@@ -183,6 +184,7 @@ def incidents_figure(rows: Sequence[dict[str, Any]]) -> Figure:
                                      row["incidents_per_100_miles_ci"]) + " per 100 mi")
         ax.text(total + 0.02 * largest, position, text, va="center", fontsize="small")
     ax.set_xlim(0, largest * 1.9)
+    ax.xaxis.set_major_locator(MaxNLocator(integer=True))  # counts
     ax.set_yticks(positions, [row["label"] for row in rows])
     ax.set_ylim(-0.6, len(rows) - 0.4)
     ax.set_xlabel("incidents (all episodes)")
