@@ -1,9 +1,10 @@
 """Natively batched envs: env i of a batch is exactly the single env with seed s + i.
 
 Known answers: the single env (a batch of one) reproduces the episodes recorded from the
-scalar implementation before batching (``tests/data/recorded_digests.json``, per-step
-digests of observations, rewards, flags and info), and E envs in one batch reproduce E
-single envs step for step, with their resets in between.
+scalar implementation before batching (``tests/data/recorded_digests.json``: digests of
+every step's observation, reward, flags and info, recorded by
+``benchmarks/record_episodes.py`` from main's scalar code), and E envs in one batch
+reproduce E single envs step for step, with their resets in between.
 """
 
 from __future__ import annotations

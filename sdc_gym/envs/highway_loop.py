@@ -21,12 +21,12 @@ from sdc_gym.metrics import DrivingMetrics
 from sdc_gym.sensors.highway_sensors import TelemetryMessage
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic
 from sdc_gym.units import MPS_TO_MPH
-from sdc_gym.vehicle.path_follower import ON_POINT_M, PHYSICS_DT
+from sdc_gym.vehicle.path_follower import PHYSICS_DT
 
 if TYPE_CHECKING:
     from sdc_gym.render.highway_renderer import HighwayRenderer, HighwayScene
 
-__all__ = ["ACTION_MARGIN_M", "EGO_LENGTH_M", "EGO_WIDTH_M", "ON_POINT_M", "PHYSICS_DT",
+__all__ = ["ACTION_MARGIN_M", "EGO_LENGTH_M", "EGO_WIDTH_M", "PHYSICS_DT",
            "HighwayLoopEnv", "highway_spaces"]
 
 
@@ -61,7 +61,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
     so the spacing of the points is the speed. A path that runs out stops the car dead,
     which reads as an enormous acceleration. A planner written for the original therefore
     drives here unchanged: the observation carries the original's telemetry fields and
-    ``info["telemetry"]`` the exact telemetry object the original would send.
+    ``info["telemetry"]`` the telemetry object the original would send, in the original's
+    conventions (see "Telemetry" below).
 
     Traffic (12 cars by default) is simulated with numpy arrays: IDM car following, lane
     changes when the target lane is clear by +-20 m, desired speeds of 40-50 mph for cars
@@ -86,9 +87,12 @@ class HighwayLoopEnv(TopDownRenderEnv):
     same). NaN and inf are never markers: a non-finite, non-numeric or out-of-bounds point
     raises ``ValueError`` naming the point. An empty path is allowed: the car stops dead.
 
-    When a path arrives, points before the one nearest the car are dropped (the original's
-    rule), and that one too if the car already stands on it (within 5 mm), so a planner
-    that resends its consumed points never stalls the car. A path takes effect
+    When a path arrives, points before the one nearest the car are dropped, and that one
+    too unless it is the path's first point and not exactly under the car (the original's
+    ``perfect_controller`` rule, :mod:`sdc_gym.envs.perfect_controller`), so a planner
+    that resends its consumed points never stalls the car. A path's last point is never
+    driven to: with one point left, the next frame removes it and the car stands still
+    (the previous path is then empty, like the original's). A path takes effect
     ``latency_steps`` physics frames after ``step`` is called; until then the car keeps
     consuming the old path. With the default ``latency_steps = steps_per_action`` it
     arrives at the end of the step, just before the observation (the original's
@@ -111,7 +115,25 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
     at the loop length); d is the offset to the right of the yellow centre line, so lane
-    ``i`` is centred at ``d = 2 + 4 i``.
+    ``i`` is centred at ``d = 2 + 4 i``. The observation is always in this exact frame:
+    the env's own agents (the FSM planner, the behavior envs' perception, the committed
+    policies) read it, whatever the ``frenet`` setting.
+
+    ## Telemetry
+
+    ``info["telemetry"]`` (with ``telemetry_info``, the default) is the flat object the
+    original sends in ``42["telemetry",{...}]``, field for field: x, y (m), yaw (degrees,
+    counter-clockwise from +x, in [0, 360)), speed (mph), s, d, previous_path_x/y (the
+    unconsumed points), end_path_s/d (of the last unconsumed point; 0, 0 when there is
+    none), sensor_fusion rows ``[id, x, y, vx, vy, s, d]`` with ids the fixed slots
+    ``0..C-1``; every number a 32-bit float rounded to 7 significant digits. With
+    ``frenet: original`` (the default) its s and d are the original's: along the waypoint
+    polyline of the map file (``CarAIControl.getFrenetFrame``, wrapping at the file's loop
+    length, 6945.554 m on the original map; end_path from the ego car's closest waypoint),
+    see :mod:`sdc_gym.geometry.original_frenet`; ``frenet: exact`` sends the exact ones of
+    the observation instead. On the original map the first message reads x 909.48,
+    y 1128.67, yaw 0, speed 0, s 124.8337, d 6.164966: the original's start (s 124.8336,
+    d 6.164833) within the 7-digit rounding of the map file's waypoints.
 
     ## Rewards
 
@@ -121,13 +143,17 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     ## Starting State
 
-    The ego car stands still in the middle lane at s = 124.8 m (the original's start),
-    facing along the road, with an empty path. Traffic is placed around it from the seed.
+    The ego car stands still in the middle lane at s = 124.8 m (the original's start) with
+    an empty path: on the original map at (909.48, 1128.67) facing +x (yaw 0) like the
+    original's car, on the built-in maps (and at a ``start_s``/``start_d`` of the config)
+    facing along the road. It keeps that heading until a path moves it. Traffic is placed
+    around it from the seed.
 
     ## Episode End
 
-    Terminated: a collision when ``terminate_on_collision`` (default; set it False to
-    count collisions and drive on, like the original), or ``laps`` laps completed
+    Terminated: a collision when ``terminate_on_collision`` (default, for RL; set it False
+    to count collisions and drive on, like the original and like ``evaluate.py`` does for
+    external planners), or ``laps`` laps completed
     (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
     carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
     distance without incident, and ``incident_log``: each incident's kind, time, step,

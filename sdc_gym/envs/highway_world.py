@@ -26,6 +26,7 @@ from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
 from sdc_gym.geometry.collision import contact_reach_sq, first_contacts
 from sdc_gym.geometry.exact_math import hypot
+from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
@@ -84,6 +85,7 @@ HIGHWAY_DEFAULTS: dict[str, Any] = {
     "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                         "speed": -1.0, "lane": -1.0, "off_road": -1.0},
     "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
+    "frenet": "original",        # telemetry s/d: "original" (waypoint polyline) | "exact"
     **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
 }
 """``HighwayLoop-v0``'s config keys with their defaults (units in the comments)."""
@@ -123,6 +125,8 @@ class HighwayWorld:
                 "latency_steps", "None or an int >= 0", cfg["latency_steps"])
         require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
         require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
+                f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
         self.envs = envs
         self.road: HighwayMap = get_highway_map(cfg["map"])
         traffic_cfg = dict(cfg["traffic"])
@@ -164,7 +168,14 @@ class HighwayWorld:
             cfg["start_s"] if cfg["start_s"] is not None else self.road.start_s))
         self.start_d = float(cfg["start_d"] if cfg["start_d"] is not None else self.road.start_d)
         self.start_xy = self.road.reference.to_xy(self.start_s, self.start_d).astype(np.float64)
-        self.start_yaw = float(self.road.reference.heading(self.start_s))
+        # The original's car faces +x at its start (yaw exactly 0 in the first telemetry)
+        # until a path turns it; our own maps, and a start set in the config, face the road.
+        at_map_start = cfg["start_s"] is None and cfg["start_d"] is None
+        self.start_yaw = (self.road.start_heading() if at_map_start
+                          else float(self.road.reference.heading(self.start_s)))
+        # The telemetry's s/d convention (the Dict observation always has the exact ones).
+        self.telemetry_frenet = (self.road.original_frenet if cfg["frenet"] == "original"
+                                 else None)
         # Per-env state beyond the layers': Frenet pose, the path end's s, d, the latest
         # sensor fusion, the episode's end.
         self.s = np.zeros(envs)
@@ -388,7 +399,7 @@ class HighwayWorld:
         rows = fusion.copy() if self._all_rows_present else fusion[self.fusion_mask[env]]
         return (*self.ego.xy[env].tolist(), float(self.ego.yaw[env]), float(self.speed[env]),
                 float(self.s[env]), float(self.d[env]), self.ego.remaining(env).copy(),
-                *self.end_sd[env].tolist(), rows)
+                *self.end_sd[env].tolist(), rows, self.telemetry_frenet)
 
 
 def incident_kinds(incidents: tuple[Incident, ...] | list[Incident]) -> list[str]:

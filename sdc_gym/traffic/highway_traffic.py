@@ -76,7 +76,7 @@ if the bumper gaps to the nearest objects ahead and behind in that lane are at l
 ``spawn_min_gap`` and the follower (a car or the ego) would not find the newcomer inside
 its IDM desired gap (so it brakes by at most its ``a_max``); the newcomer starts at its
 desired speed or, if its own leader is close, at the largest speed whose IDM desired gap
-fits (:func:`max_speed_for_gap`). A recycled car gets a new id. When no spot fits (dense
+fits (:func:`max_speed_for_gap`). A recycled car keeps its slot id. When no spot fits (dense
 traffic: e.g. 50 cars in +-200 m jam at about 15 m/s), the car drives on where it is and
 tries again later. :meth:`HighwayTraffic.reset` lays the cars out uniformly over the free
 room (``spawn_min_gap`` from each other and from the ego) within a spread set by
@@ -115,7 +115,9 @@ class HighwayTraffic:
         dt: s, the physics step.
 
     After :meth:`reset` or :meth:`advance`, these ``(n,)`` arrays hold the current state
-    (read-only views of the batch's row): ``ids`` (a respawned car gets a new id), ``s``,
+    (read-only views of the batch's row): ``ids`` (fixed slots ``0..n-1``: a respawned car
+    keeps its slot's id, as in the original, whose sensor fusion numbers its list of
+    cars), ``spawn_count`` (how often each slot has been respawned since the reset), ``s``,
     ``d``, ``speed``, ``lane`` (the lane holding the car's centre), ``target_lane`` (the
     destination of a lane change, else the car's lane), ``length``, ``width``,
     ``type_index``, ``x``, ``y``, ``heading``, ``vx``, ``vy``, and ``desired_speed``
@@ -203,6 +205,7 @@ class HighwayTraffic:
         return view
 
     ids = property(lambda self: self._row("ids"))
+    spawn_count = property(lambda self: self._row("spawn_count"))
     type_index = property(lambda self: self._row("type_index"))
     length = property(lambda self: self._row("length"))
     width = property(lambda self: self._row("width"))

@@ -173,8 +173,7 @@ def recycle(batch: TrafficBatch, st: TrafficState, r: int, rel: FloatArray,
         offsets = np.concatenate((spots_ahead, spots_behind) if ahead
                                  else (spots_behind, spots_ahead))
         if place(batch, st, r, int(i), placed, rng, offsets):
-            st.ids[r, i] = st.next_id[r]
-            st.next_id[r] += 1
+            st.spawn_count[r, i] += 1  # the slot keeps its id, as the original's cars
             moved = True
         else:  # no room (dense traffic): the car drives on; retry in a while
             st.respawn_wait[r, i] = step + RESPAWN_RETRY_STEPS

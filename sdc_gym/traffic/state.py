@@ -25,7 +25,9 @@ IDLE = 2**62  # lane-change end step of a car that is not changing lanes
 class TrafficState:
     """The arrays of a batch's traffic (see the module docstring).
 
-    Per car, ``(envs, cars)``: ``ids``, ``type_index``, ``length``, ``width``,
+    Per car, ``(envs, cars)``: ``ids`` (the fixed slots ``0..cars-1``: a respawned car
+    keeps its slot's id, as in the original), ``spawn_count`` (respawns of the slot since
+    the reset), ``type_index``, ``length``, ``width``,
     ``half_length``, ``a_max`` and ``tsab`` (IDM ``a_max`` and ``2 sqrt(a_max b)``), ``s``
     (wrapped), ``d``, ``speed``, ``desired`` (IDM ``v0``), ``origin`` and ``target_lane``
     (equal unless changing lanes), ``x``, ``y``, ``heading``, ``vx``, ``vy`` (the pose of
@@ -35,7 +37,7 @@ class TrafficState:
     wish being sustained (``pending`` lane, ``held`` decisions), the rogue timers
     ``brake_until`` and ``cut_in_until``, and ``respawn_wait``.
 
-    Per env, ``(envs,)``: ``step`` (physics frames since the reset), ``next_id``,
+    Per env, ``(envs,)``: ``step`` (physics frames since the reset),
     ``respawn_blocked_until``, ``rogue_brake_count``, ``rogue_cut_in_count`` and the ego's
     latest ``ego_s``, ``ego_d``, ``ego_speed``.
     """
@@ -45,11 +47,10 @@ class TrafficState:
         "x", "y", "heading", "vx", "vy", "kappa", "acc", "half_acc", "omega", "phase",
         "wander_speed", "lc_duration")
     CAR_INTS: ClassVar[tuple[str, ...]] = (
-        "ids", "type_index", "origin", "target_lane", "lc_start", "lc_end", "pending",
-        "held", "brake_until", "cut_in_until", "respawn_wait")
+        "ids", "spawn_count", "type_index", "origin", "target_lane", "lc_start", "lc_end",
+        "pending", "held", "brake_until", "cut_in_until", "respawn_wait")
     ENV_INTS: ClassVar[tuple[str, ...]] = (
-        "step", "next_id", "respawn_blocked_until", "rogue_brake_count",
-        "rogue_cut_in_count")
+        "step", "respawn_blocked_until", "rogue_brake_count", "rogue_cut_in_count")
     ENV_FLOATS: ClassVar[tuple[str, ...]] = ("ego_s", "ego_d", "ego_speed")
     FIELDS: ClassVar[tuple[str, ...]] = CAR_FLOATS + CAR_INTS + ENV_INTS + ENV_FLOATS
 
@@ -76,6 +77,7 @@ class TrafficState:
     wander_speed: FloatArray
     lc_duration: FloatArray
     ids: IntArray
+    spawn_count: IntArray
     type_index: IntArray
     origin: IntArray
     target_lane: IntArray
@@ -87,7 +89,6 @@ class TrafficState:
     cut_in_until: IntArray
     respawn_wait: IntArray
     step: IntArray
-    next_id: IntArray
     respawn_blocked_until: IntArray
     rogue_brake_count: IntArray
     rogue_cut_in_count: IntArray
@@ -112,8 +113,7 @@ class TrafficState:
         """Start rows afresh (before a placement writes their cars)."""
         for name in self.FIELDS:
             getattr(self, name)[rows] = 0
-        self.ids[rows] = np.arange(self.cars)
-        self.next_id[rows] = self.cars
+        self.ids[rows] = np.arange(self.cars)  # fixed slots, as the original's cars
         self.lc_start[rows] = NEVER
         self.lc_end[rows] = IDLE
         self.pending[rows] = -1

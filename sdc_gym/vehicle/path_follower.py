@@ -4,8 +4,8 @@ Every 0.02 s physics frame the car is placed on the next point of its path, faci
 point after (the original simulator's controller), so the spacing of the points is the
 speed; a path that runs out stops the car dead where it stands. A path takes effect
 ``latency`` frames after it is sent; until then the car keeps consuming the old one.
-When a path arrives, the points before the one nearest the car are dropped, and that one
-too if the car already stands on it (within ``ON_POINT_M``). All envs of a batch send
+How a path is taken up and consumed is the original's rule
+(:mod:`sdc_gym.envs.perfect_controller`). All envs of a batch send
 their paths at the same frames (steps of ``frames_per_step``), so arrivals fall on the
 same frame offsets of a step for all of them; the motion between arrivals is one set of
 array expressions for every env.
@@ -16,11 +16,12 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.envs.perfect_controller import adopted_start, frames_of_motion
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
-ON_POINT_M = 0.005  # m: a new path's point this close to the car is the one it stands on
 
 
 class PathFollower:
@@ -87,14 +88,7 @@ class PathFollower:
             length = self.queue_length[rows, slot]
             self.path[rows] = path
             self.path_length[rows] = length
-            offset = path - self.xy[rows][:, None, :]  # squared distances, the same two-term
-            offset *= offset                          # sums as np.sum(offset**2, axis=-1)
-            distance_sq = offset[..., 0] + offset[..., 1]
-            distance_sq[self._steps[None, :] >= length[:, None]] = np.inf
-            nearest = distance_sq.argmin(axis=1)
-            on_point = distance_sq[np.arange(len(rows)), nearest] <= ON_POINT_M**2
-            nearest = nearest + on_point
-            self.path_start[rows] = np.where(length > 0, nearest, 0)
+            self.path_start[rows] = adopted_start(path, length, self.xy[rows])
             self.queue_head[rows] = (slot + 1) % self.queue.shape[1]
             self.queue_count[rows] -= 1
 
@@ -117,7 +111,7 @@ class PathFollower:
                 due = self.queue_due[self._rows, self.queue_head] - self.frame
                 horizon = int(min(horizon, due[waiting].min()))
             first = self.path_start
-            moves = np.minimum(horizon, np.maximum(self.path_length - first - 1, 0))
+            moves, discard_last = frames_of_motion(self.path_length - first, horizon)
             j = np.arange(horizon)[None, :]
             index = np.minimum(first[:, None] + j, self.capacity - 2)
             here = self.path[self._rows[:, None], index]
@@ -130,7 +124,8 @@ class PathFollower:
             track[:, done + 1:done + 1 + horizon] = np.where(moving[..., None], here,
                                                              stopped_xy[:, None, :])
             yaw[:, done:done + horizon] = np.where(moving, heading, stopped_yaw[:, None])
-            self.path_start = first + moves
+            # One point left: a frame removes it, the car stands still.
+            self.path_start = np.where(discard_last, self.path_length, first + moves)
             self.xy = stopped_xy
             self.yaw = stopped_yaw
             done += horizon
