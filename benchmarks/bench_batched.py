@@ -8,9 +8,9 @@ by side in the same run stay meaningful):
 * ``HighwayLoopBehavior-v0`` env steps/s with random actions: the single env
   (``gym.make``) and the batch (``gym.make_vec(..., vectorization_mode=
   "vector_entry_point")``) at each E, and the ratio batch / single;
-* PPO samples/s (stable-baselines3, MLP 64x64, 2048 samples per rollout, 5 epochs of
-  minibatches of 256): the batch through ``SB3VecEnv`` against two single envs in
-  subprocesses (the previous default of train.py);
+* PPO samples/s (``bench_behavior.py``'s settings: MLP 64x64, 2048 samples per rollout,
+  5 epochs of minibatches of 256): the batch through ``SB3VecEnv`` against two single
+  envs in subprocesses (the previous default of train.py);
 * ``HighwayLoop-v0`` with the lane-keeping driver: simulated s per wall s against the
   number of cars, and the traffic's decision kernel alone (leaders by one sort per lane:
   the ratio 500 cars / 100 cars);
@@ -26,6 +26,7 @@ import warnings
 
 import gymnasium as gym
 import numpy as np
+from bench_behavior import PPO_SETTINGS, ppo_samples_per_second
 
 import sdc_gym  # noqa: F401
 
@@ -68,24 +69,20 @@ def batch_steps_per_second(envs: int, env_steps: int, seed: int = 0) -> float:
     return batches * envs / wall
 
 
-def ppo_samples_per_second(samples: int, envs: int, batched: bool, seed: int = 0) -> float:
+def ppo_batch_samples_per_second(samples: int, envs: int, seed: int = 0) -> float:
+    """bench_behavior's PPO measurement, with the envs as one native batch."""
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.env_util import make_vec_env
-    from stable_baselines3.common.vec_env import SubprocVecEnv, VecMonitor
+    from stable_baselines3.common.vec_env import VecMonitor
 
     from sdc_gym.envs.sb3 import SB3VecEnv
 
     torch.set_num_threads(1)
-    if batched:
-        vec = VecMonitor(SB3VecEnv(BEHAVIOR, envs))
-        vec.seed(seed)
-    else:
-        vec = make_vec_env(f"sdc_gym:{BEHAVIOR}", n_envs=envs, seed=seed,
-                           vec_env_cls=SubprocVecEnv)
-    model = PPO("MlpPolicy", vec, n_steps=2048 // envs, batch_size=256, n_epochs=5, seed=seed,
-                policy_kwargs={"net_arch": [64, 64]}, verbose=0)
-    model.learn(2048)  # warm-up: processes, first rollout
+    vec = VecMonitor(SB3VecEnv(BEHAVIOR, envs))
+    vec.seed(seed)
+    model = PPO("MlpPolicy", vec, seed=seed, verbose=0,
+                **{**PPO_SETTINGS, "n_steps": PPO_SETTINGS["n_steps"] * 2 // envs})
+    model.learn(2048)  # warm-up: the first rollout
     started = time.perf_counter()
     model.learn(samples, reset_num_timesteps=False)
     wall = time.perf_counter() - started
@@ -153,8 +150,8 @@ def main() -> None:
         print(f"HighwayLoopBehavior-v0 batch E = {envs:<5d}:  {rate:9.0f} env steps/s  "
               f"({rate / single:5.1f}x the single env)   load {load()}")
     if not args.skip_ppo:
-        ours = ppo_samples_per_second(args.ppo_steps, args.ppo_envs, batched=True)
-        theirs = ppo_samples_per_second(args.ppo_steps, 2, batched=False)
+        ours = ppo_batch_samples_per_second(args.ppo_steps, args.ppo_envs)
+        theirs = ppo_samples_per_second(BEHAVIOR, args.ppo_steps, 2)
         print(f"PPO samples/s, batch of {args.ppo_envs} (SB3VecEnv): {ours:9.0f}")
         print(f"PPO samples/s, 2 envs in subprocesses:   {theirs:9.0f}   "
               f"ratio {ours / theirs:.1f}x   load {load()}")

@@ -19,9 +19,9 @@ info in ``info["final_info"]``; ``DISABLED`` leaves resetting to the caller
 naming the envs that have it. By default it is slim: at an episode's end ``summary``
 (the single env's, a nested dict of arrays as the vector API lays dicts out;
 :func:`env_info` gives back one env's plain dict), ``is_success`` and
-``termination_reason``, and nothing in between. ``full_info=True`` adds the single env's per-step values every step
-(``time``, ``distance``, ``speed``, the incident counts, ...; for the behavior env also
-``behavior``).
+``termination_reason``, and nothing in between. ``full_info=True`` adds the single
+env's per-step values every step (``time``, ``distance``, ``speed``, the incident
+counts, ...; for the behavior env also ``behavior``).
 """
 
 from __future__ import annotations
@@ -55,9 +55,14 @@ class _BatchVectorEnv(VectorEnv):
     """Seeding, autoreset and info assembly over a batch whose envs reset one at a time."""
 
     def __init__(self, num_envs: int, autoreset_mode: AutoresetMode | str,
-                 full_info: bool) -> None:
+                 full_info: bool, render_mode: str | None, max_episode_steps: int | None,
+                 duration_key: str) -> None:
         if not (isinstance(num_envs, int) and num_envs >= 1):
             raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        if render_mode is not None:
+            raise ValueError("the batched env does not render; render one env with gym.make")
+        if max_episode_steps is not None:
+            raise ValueError(f"set the episode length with config {duration_key}")
         self.num_envs = num_envs
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
         self.metadata = {"autoreset_mode": self.autoreset_mode, "render_modes": []}
@@ -66,6 +71,12 @@ class _BatchVectorEnv(VectorEnv):
         self._generators: list[np.random.Generator | None] = [None] * num_envs
         self._needs_reset = np.zeros(num_envs, dtype=bool)
         self._ready = False
+
+    def _set_spaces(self, action_space: gym.Space, observation_space: gym.Space) -> None:
+        self.single_action_space = action_space
+        self.single_observation_space = observation_space
+        self.action_space = batch_space(action_space, self.num_envs)
+        self.observation_space = batch_space(observation_space, self.num_envs)
 
     # ------------------------------------------------------------------ to implement
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:
@@ -208,15 +219,10 @@ class HighwayLoopBehaviorVectorEnv(_BatchVectorEnv):
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  full_info: bool = False, render_mode: str | None = None,
                  max_episode_steps: int | None = None) -> None:
-        super().__init__(num_envs, autoreset_mode, full_info)
-        if render_mode is not None:
-            raise ValueError("the batched env does not render; render one env with gym.make")
-        if max_episode_steps is not None:
-            raise ValueError("set the episode length with config highway.max_duration")
+        super().__init__(num_envs, autoreset_mode, full_info, render_mode, max_episode_steps,
+                         "highway.max_duration")
         self.batch = HighwayBehaviorWorld(config, envs=num_envs)
-        self.single_action_space, self.single_observation_space = behavior_spaces(self.batch)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self._set_spaces(*behavior_spaces(self.batch))
 
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:
         self.batch.reset_at(env, rng)
@@ -257,15 +263,10 @@ class HighwayLoopVectorEnv(_BatchVectorEnv):
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  full_info: bool = False, render_mode: str | None = None,
                  max_episode_steps: int | None = None) -> None:
-        super().__init__(num_envs, autoreset_mode, full_info)
-        if render_mode is not None:
-            raise ValueError("the batched env does not render; render one env with gym.make")
-        if max_episode_steps is not None:
-            raise ValueError("set the episode length with config max_duration")
+        super().__init__(num_envs, autoreset_mode, full_info, render_mode, max_episode_steps,
+                         "max_duration")
         self.world = HighwayWorld(config, envs=num_envs)
-        self.single_action_space, self.single_observation_space = highway_spaces(self.world)
-        self.action_space = batch_space(self.single_action_space, num_envs)
-        self.observation_space = batch_space(self.single_observation_space, num_envs)
+        self._set_spaces(*highway_spaces(self.world))
         self._lengths = np.full(num_envs, self.world.path_points, dtype=np.int64)
 
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:

@@ -236,7 +236,7 @@ class HighwayWorld:
         inside = (paths >= self._low_rows) & (paths <= self._high_rows)
         bad = used & ~(inside[..., 0] & inside[..., 1])
         if np.count_nonzero(bad):
-            env, index = (int(v[0]) for v in np.nonzero(bad))
+            env = int(np.nonzero(bad)[0][0])
             self._raise_bad_point(paths[env, :lengths[env]], env if self.envs > 1 else None)
         rows = np.arange(len(lengths))
         last = paths[rows, np.maximum(lengths - 1, 0)]
