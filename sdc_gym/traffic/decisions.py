@@ -21,7 +21,7 @@ calls. The accelerations are held until the next decision.
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -33,8 +33,9 @@ from sdc_gym.traffic.leaders import nearest_objects
 from sdc_gym.traffic.placement import recycle
 from sdc_gym.traffic.state import IDLE, NEVER, TrafficState
 
-if TYPE_CHECKING:
-    from sdc_gym.traffic.batch import TrafficBatch
+# The kernels take the batch (sdc_gym.traffic.batch.TrafficBatch, which imports them) for
+# its constants: typed by name only, so that the modules do not import each other.
+TrafficBatch = Any
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

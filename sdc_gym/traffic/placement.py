@@ -9,7 +9,7 @@ The rules are in :mod:`sdc_gym.traffic.highway_traffic` ("Respawn rule").
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -19,8 +19,9 @@ from sdc_gym.traffic.idm import desired_gap, max_speed_for_gap
 from sdc_gym.traffic.state import IDLE, NEVER, TrafficState
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES
 
-if TYPE_CHECKING:
-    from sdc_gym.traffic.batch import TrafficBatch
+# The kernels take the batch (sdc_gym.traffic.batch.TrafficBatch, which imports them) for
+# its constants: typed by name only, so that the modules do not import each other.
+TrafficBatch = Any
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
