@@ -81,7 +81,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.stack.highway.behavior import STEP, BehaviorDecision
-from sdc_gym.stack.highway.motion_kernel import plan_batch
+from sdc_gym.stack.highway.motion_kernel import line_frame, plan_batch
 
 # Columns of the queue: one row per planned state.
 _X, _Y, _S, _D, _HEADING, _INCREMENT = range(6)
@@ -179,7 +179,11 @@ class MotionBatch:
         self._line = np.array([reference._knot_step, reference._inverse_step,
                                reference._segments, reference._param_scale,
                                reference.length])
-        self.buffer = np.zeros((envs, _BUFFER_ROWS, _COLUMNS))
+        # Room for the longest queue (a path, the points in flight, a cycle's consumption)
+        # twice over: the kernel moves a queue back to the start when it reaches the end.
+        rows = max(_BUFFER_ROWS, 2 * (p.path_length + p.latency_frames
+                                      + 2 * p.frames_per_cycle + p.batch_points + 8))
+        self.buffer = np.zeros((envs, rows, _COLUMNS))
         self.start = np.zeros(envs, dtype=np.int64)  # queue: buffer[start:stop]
         self.stop = np.zeros(envs, dtype=np.int64)
         self.end_row = np.zeros((envs, _COLUMNS))  # the queue's last row ...
@@ -277,6 +281,19 @@ class SeedMotionPlanner:
 
     def _end_row(self) -> list[float]:
         return self.batch.end_of(self.env).tolist()
+
+    def _geometry(self, s_pred: list[float], distance: float, aim_d: float,
+                  ) -> tuple[list[tuple[float, ...]], list[complex], float]:
+        """The kernel's road geometry for a batch of predicted s: the line's ``(x, y, nx,
+        ny, curvature)`` at each, the aim points ``distance`` further at ``aim_d``, and the
+        curvature at the last aim point (for tests of the kernel's arithmetic)."""
+        batch = self.batch
+        frame = [line_frame(batch._coef, *batch._line[:2], int(batch._line[2]),
+                            *batch._line[3:], s, 3.0)
+                 for s in [*s_pred, *(sp + distance for sp in s_pred)]]
+        k = len(s_pred)
+        aims = [complex(x + aim_d * nx, y + aim_d * ny) for x, y, nx, ny, _ in frame[k:]]
+        return frame[:k], aims, frame[-1][4]
 
     @property
     def end_state(self) -> MotionState:
