@@ -19,8 +19,8 @@ velocity_time, dbw_enabled) -> DBWCommand``) and ``reset()``.
     and no throttle. With drive-by-wire off only the PID is reset and nothing is sent.
 :class:`ProportionalBrakeTwistController` (teams without a holding torque)
     The same yaw controller; throttle from a PID on the speed error (kp 0.4, ki 0.1,
-    output in [0, accel_limit]); when that leaves no throttle and the car is faster than
-    its target, the brake is proportional to the excess speed,
+    output in [0, accel_limit]) while the car is slower than its target; faster, no
+    throttle and a brake proportional to the excess speed,
     ``brake_gain x (v - v_target) x total_mass x wheel_radius`` (1.5 /s: 270 N m at
     0.5 m/s for the sim car), capped at ``|decel_limit|``'s torque, and **0 below a
     deadband of 0.1 m/s**: no torque ever holds the car at rest.
@@ -54,8 +54,13 @@ CAPSTONE_DATA = Path(__file__).resolve().parents[3] / "shared" / "data" / "udaci
 
 CARS: dict[str, dict[str, Any]] = {
     "sim": {},
-    # The sim preset before issue 19 (vehicle_overrides that restore it).
-    "creeping": {},
+    # The sim preset before issue 19 (vehicle_overrides that restore it exactly): an
+    # automatic creeping at idle, held by 400 N m, 4 kN / 90 kW, aerodynamic drag and
+    # rolling resistance, the kinematic bicycle with the launch file's 14.8 and 8 rad.
+    "creeping": {"creep_hold_torque": 400.0, "creep_speed": 2.0, "max_drive_force": 4000.0,
+                 "max_drive_power": 90_000.0, "drag_coefficient": 0.40,
+                 "rolling_resistance": 0.015, "linear_drag": 0.0, "rest_speed": 0.0,
+                 "response_steer_ratio": None, "steering_lock": None},
 }
 """``vehicle_overrides`` by name: the sim preset, and the sim preset before issue 19."""
 
@@ -160,10 +165,12 @@ class ProportionalBrakeTwistController:
         steering = self.yaw.steering(target_linear_mps, target_angular_radps, speed)
         excess = speed - target_linear_mps
         throttle = self.throttle_pid.step(-excess, self._clock.tick(now_s))
+        if excess <= 0.0:
+            return DBWCommand(throttle, 0.0, steering)
         brake = 0.0
-        if throttle <= 0.0 and excess > 0.0 and speed > self.brake_deadband_mps:
+        if speed > self.brake_deadband_mps:
             brake = min(self.brake_gain_per_s * excess * self.torque_per_decel, self.max_brake)
-        return DBWCommand(throttle, brake, steering)
+        return DBWCommand(0.0, brake, steering)
 
 
 ControllerFactory = Callable[[VehicleParameters], object]
