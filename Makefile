@@ -13,10 +13,22 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
+# The HTML report's test opens it in a real headless browser: Debian's chromium, installed
+# here when missing (as root, e.g. on CI; others are told the command).
+CHROMIUM ?= /usr/bin/chromium
+$(CHROMIUM):
+	@if [ "$$(id -u)" = 0 ]; then \
+		apt-get -o DPkg::Lock::Timeout=600 update -qq && \
+		apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends chromium; \
+	else \
+		echo "$(CHROMIUM) is missing: sudo apt-get install --no-install-recommends chromium"; \
+		exit 1; \
+	fi
+
 evaluate: $(STAMP)  ## the main job: evaluate the reference agent(s) on the default env
 	$(PY) evaluate.py
 
-test: $(STAMP)  ## the test suite
+test: $(STAMP) $(CHROMIUM)  ## the test suite
 	$(PY) -m pytest
 
 lint: $(STAMP)

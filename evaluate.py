@@ -1,6 +1,7 @@
 """Evaluate driving agents on an sdc-gym env: lap times, incidents, plots, endurance.
 
     python evaluate.py                       # DEFAULT_AGENTS, default highway, 3 seeds, 1 lap
+    python evaluate.py --seeds $(seq 0 19) --wide   # 20 seeds, every column
     python evaluate.py --agents lane_keeping --episodes 5 --laps 2 --workers 2
     python evaluate.py --seeds 3 5 8         # these seeds instead of --seed + --episodes
     python evaluate.py --config configs/highway_dense_traffic.yaml --output results/dense
@@ -8,18 +9,35 @@
     python evaluate.py --endurance 50        # 50 laps in ONE episode, driving on after incidents
     python evaluate.py --agent "external:./path_planning" --planner-cwd build \
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
+    python evaluate.py compare results/A results/B   # two runs side by side
 
-Prints a table per agent (laps, mean and best lap time, mean speed, miles without incident,
-incidents by kind, max acceleration and jerk) and writes to the output folder, atomically:
+Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
+each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
+incidents by kind when there are any, and one verdict per agent pair ("A faster than B
+by D mph [low, high], P(improvement) p"; "no clear difference" when the interval spans 0).
+``--wide`` prints every column in one table instead.
 
+Each run gets a new folder results/<date>_<time> (results/latest links to the newest);
+``--output DIR`` writes to DIR instead, refusing a non-empty one unless ``--overwrite``.
+Written atomically:
+
+    report.html        the whole run in one self-contained page (tables, verdicts, plots,
+                       incident gallery): open it in a browser
     episodes.csv       one row per episode
-    summary.json       per-agent rows and every episode's summary (with its incident_log)
+    agents.csv         one row per agent, with the intervals (_ci_low, _ci_high)
+    comparisons.csv    one row per agent pair: speed difference, P(improvement), verdict
+    summary.json       the run's settings, the agents' rows, the comparisons and every
+                       episode's summary (with its incident_log)
     traces.npz         per-step time, distance, speed, acceleration, jerk of every episode
-                       (arrays "agent/seed/field"; agents.evaluation.load_traces reads it)
-    profiles.png       speed (mph), acceleration and jerk over distance, first seed per agent
-    lap_times.png      every lap time per agent over a box plot
+                       (arrays "agent/seed/field"; evaluation.files.load_traces reads it)
+    means.png          mean speed and lap time per agent with 95 % intervals
+    incidents.png      incidents by kind per agent, with the rate per 100 miles
+    profiles.png       speed, acceleration and jerk over distance, one seed (--plot-seed)
+    speed_time.png     speed over time, the same seed (on the track: the light ahead)
     incident_map.png   the loop with each agent's incidents marked by kind
-    incidents.json     each incident with the last seconds of the ego and nearby cars
+    incidents.json     a JSON array of incident reports (one per line): each incident with
+                       the last seconds of the ego and nearby cars
+    incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
 
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
@@ -32,7 +50,10 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
+import sys
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,19 +62,18 @@ import yaml
 from rich.console import Console
 
 from agents import external
-from agents.evaluation import (
-    SEED_RECORD_MILES,
-    EpisodeSpec,
-    aggregate,
-    endurance_table,
-    results_table,
-    run_episodes,
-    write_incident_reports,
-    write_results,
-    write_traces,
-)
-from agents.incident_reports import DEFAULT_HISTORY_S
 from agents.registry import AGENT_KINDS, AGENTS, parse_agent_spec
+from evaluation import run_folders, statistics
+from evaluation.analysis import analyse, terminal_output
+from evaluation.compare import compare_main
+from evaluation.episodes import EpisodeSpec
+from evaluation.incident_plots import EgoShape
+from evaluation.incident_reports import DEFAULT_HISTORY_S
+from evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
+from evaluation.plots import Limits
+from evaluation.profiles import stop_line_distances
+from evaluation.runner import run_episodes
+from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
 
@@ -139,12 +159,22 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="drive N laps in one episode per agent and seed, counting "
                              "incidents and driving on; reports miles without incident")
     # A str, not a Path: Path("") is "." and would silently write into the working folder.
-    parser.add_argument("--output", default="results/latest",
-                        help="folder for the result files and plots")
+    parser.add_argument("--output", default=None,
+                        help="folder for the result files and plots (default: a new "
+                             f"{run_folders.RESULTS_ROOT}/<date>_<time>, linked as "
+                             f"{run_folders.RESULTS_ROOT}/{run_folders.LATEST}); an existing "
+                             "non-empty folder needs --overwrite")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="write into a non-empty --output folder, replacing the result "
+                             "files of the run there (other files are kept)")
     parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                         help="parallel worker processes (default: one per CPU core, "
                              f"{os.cpu_count() or 1} here)")
-    parser.add_argument("--no-plots", action="store_true", help="skip the PNG plots")
+    add_report_arguments(parser)
+    parser.add_argument("--plot-seed", type=int, default=None, metavar="SEED",
+                        help="the seed whose speed profiles are drawn (default: the first)")
+    parser.add_argument("--no-plots", action="store_true",
+                        help="skip the PNG plots (report.html then has the tables only)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     external.check_external_arguments(parser, args)
@@ -159,11 +189,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error("--seeds lists the seeds: do not combine it with --seed or --episodes")
     if args.endurance is not None and args.laps is not None:
         parser.error("--endurance N sets the laps (N in one episode): drop --laps")
-    if not args.output.strip():
-        parser.error("--output must be a folder path, got an empty string")
-    args.output = Path(args.output)
-    if args.output.exists() and not args.output.is_dir():
-        parser.error(f"--output {args.output} exists and is not a folder")
+    if args.output is not None:
+        if not args.output.strip():
+            parser.error("--output must be a folder path, got an empty string")
+        args.output = Path(args.output)
+        if args.output.exists() and not args.output.is_dir():
+            parser.error(f"--output {args.output} exists and is not a folder")
+    elif args.overwrite:
+        parser.error("--overwrite needs --output (without it each run gets a new folder)")
+    check_report_arguments(parser, args)
     if args.agents is not None:
         args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
@@ -172,6 +206,54 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         args.seeds = list(range(first, first + episodes))
     else:
         args.seeds = list(dict.fromkeys(args.seeds))
+    if args.plot_seed is not None and args.plot_seed not in args.seeds:
+        parser.error(f"--plot-seed {args.plot_seed} is not among the run's seeds "
+                     f"{args.seeds}")
+    return args
+
+
+def add_report_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of the printed tables and the statistics (a run and ``compare`` alike)."""
+    parser.add_argument("--wide", action="store_true",
+                        help="print every column in one table (about 200 columns) instead "
+                             "of the 80-column tables")
+    parser.add_argument("--bootstrap-resamples", type=int,
+                        default=statistics.DEFAULT_RESAMPLES, metavar="N",
+                        help="bootstrap resamples of each interval (default "
+                             f"{statistics.DEFAULT_RESAMPLES})")
+    parser.add_argument("--bootstrap-seed", type=int, default=statistics.DEFAULT_SEED,
+                        metavar="SEED", help="seed of the bootstrap (default "
+                        f"{statistics.DEFAULT_SEED}): the same episodes always give the "
+                        "same intervals")
+
+
+def check_report_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
+    if args.bootstrap_resamples < 100:
+        parser.error(f"--bootstrap-resamples must be >= 100, got {args.bootstrap_resamples}")
+
+
+def statistics_settings(args: argparse.Namespace) -> statistics.Settings:
+    return statistics.Settings(resamples=args.bootstrap_resamples, seed=args.bootstrap_seed)
+
+
+def parse_compare_args(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="evaluate.py compare",
+        description="Put evaluation runs side by side with the same statistics: each "
+                    "agent of each run as 'run/agent', verdicts for the same agent across "
+                    "runs (every pair when no agent is in two runs).")
+    parser.add_argument("runs", nargs="+", type=Path, metavar="RUN",
+                        help="run folders (with their summary.json), e.g. results/latest")
+    parser.add_argument("--output", type=Path, default=None,
+                        help="also write agents.csv, comparisons.csv, summary.json, the "
+                             "plots and report.html to this folder")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="write into a non-empty --output folder")
+    add_report_arguments(parser)
+    args = parser.parse_args(argv)
+    check_report_arguments(parser, args)
+    if len(args.runs) < 2:
+        parser.error("give at least two run folders")
     return args
 
 
@@ -206,8 +288,18 @@ def episode_specs(args: argparse.Namespace, env_id: str,
             for agent in args.agents for seed in args.seeds]
 
 
-def probe_env(env_id: str, env_config: dict[str, Any]) -> tuple[Any, IncidentRules]:
-    """The env's road or track (for the incident map, ``None`` without one) and rules.
+@dataclass(frozen=True)
+class EnvProbe:
+    """What the plots need from the env, read once before any worker starts."""
+
+    road: Any  # the highway map or the track (None without one)
+    rules: IncidentRules
+    start_s: float
+    ego_shape: EgoShape
+
+
+def probe_env(env_id: str, env_config: dict[str, Any]) -> EnvProbe:
+    """The env's road or track (for the incident map), rules and start.
 
     Also validates the config before any worker starts: a bad key fails here, once.
     """
@@ -215,50 +307,76 @@ def probe_env(env_id: str, env_config: dict[str, Any]) -> tuple[Any, IncidentRul
     try:
         unwrapped = env.unwrapped
         road = getattr(unwrapped, "road", None) or getattr(unwrapped, "track", None)
-        return road, getattr(unwrapped, "rules", IncidentRules())
+        start_s = getattr(unwrapped, "start_s", None)
+        if start_s is None:
+            start_s = getattr(road, "start_s", 0.0)
+        return EnvProbe(road, getattr(unwrapped, "rules", IncidentRules()), float(start_s),
+                        EgoShape.of_env(unwrapped))
     finally:
         env.close()
 
 
+def output_folder(args: argparse.Namespace) -> Path:
+    """The run's folder: ``--output`` (checked: never overwritten silently), else a new
+    timestamped one under results/."""
+    if args.output is not None:
+        run_folders.prepare_output(args.output, args.overwrite, OWNED_NAMES)
+        return args.output
+    return run_folders.new_run_folder()
+
+
 def main(argv: list[str] | None = None) -> dict[str, Any]:
-    """Run the evaluation; returns the per-agent rows, episodes and files written."""
+    """Run the evaluation (or ``compare``); returns the per-agent rows, comparisons,
+    episodes and files written."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["compare"]:
+        compare = parse_compare_args(argv[1:])
+        if compare.output is not None:
+            run_folders.prepare_output(compare.output, compare.overwrite, OWNED_NAMES)
+        return compare_main(compare.runs, Console(), compare.wide,
+                            statistics_settings(compare), compare.output)
     args = parse_args(argv)
     env_id, env_config = env_settings(args)
     if args.agents is None:
         args.agents = list(DEFAULT_TRACK_AGENTS if env_id in TRACK_ENVS else DEFAULT_AGENTS)
     try:
-        road, rules = probe_env(env_id, env_config)
+        probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
+    latest = args.output is None
+    args.output = output_folder(args)
     specs = episode_specs(args, env_id, env_config)
     workers = external.fixed_port_workers(args, args.agents, args.workers)
     console = Console()
-    if not console.is_terminal:  # logs and CI: do not squeeze the table into 80 columns
+    if args.wide and not console.is_terminal:  # logs: do not squeeze the wide table
         console = Console(width=260)
 
     started = time.perf_counter()
     episodes = run_episodes(specs, workers=workers, progress=not args.no_progress)
     wall = time.perf_counter() - started
 
-    rows = aggregate(episodes)
-    write_results(args.output, episodes, rows)
-    files = [args.output / "summary.json", args.output / "episodes.csv"]
-    if write_traces(args.output / "traces.npz", episodes):
-        files.append(args.output / "traces.npz")
-    if write_incident_reports(args.output / "incidents.json", episodes):
-        files.append(args.output / "incidents.json")
-    if not args.no_plots:
-        from agents.plots import Limits, write_plots
-
-        files += write_plots(args.output, episodes, road, Limits.from_rules(rules))
-
+    analysis = analyse(episodes, statistics_settings(args))
     laps = env_config["laps"]
     mode = f"endurance, {laps} laps in one episode" if args.endurance else f"{laps} lap(s)"
     seeds = " ".join(map(str, args.seeds))
-    console.print(results_table(rows, f"{env_id}: seed(s) {seeds} x {mode}"))
+    title = f"{env_id}: seed(s) {seeds} x {mode}"
+    run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
+           "seeds": args.seeds, "laps": laps, "endurance": bool(args.endurance),
+           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall}
+    settings = [("env", env_id), ("seeds", seeds), ("laps", mode),
+                ("agents", " ".join(args.agents)), ("command", run["command"]),
+                ("wall time", f"{wall:.1f} s, {len(episodes)} episode(s)")]
+    plot_options = None if args.no_plots else PlotOptions(
+        probe.road, Limits.from_rules(probe.rules),
+        stop_line_distances(probe.road, probe.start_s, laps), args.plot_seed, probe.ego_shape)
+    files = write_run(args.output, episodes, analysis, title, settings, run, plot_options)
+    if latest:
+        run_folders.point_latest_at(args.output)
+
+    terminal_output(console, analysis, title, args.wide)
     if args.endurance:
-        console.print(endurance_table(episodes, f"endurance: {laps} laps, "
-                                                "incidents counted, driving on"))
+        console.print(endurance_table(episodes, f"endurance: {laps} laps, incidents counted, "
+                                                "driving on", analysis.labels).rich())
         best = max(episode["longest_distance_without_incident"] for episode in episodes)
         console.print(f"best distance without incident: {best / METERS_PER_MILE:.2f} miles "
                       f"(seed planner's record: {SEED_RECORD_MILES:.2f} miles)")
@@ -267,9 +385,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             console.print(f"{episode['agent']} seed {episode['seed']} ended early, "
                           f"{episode['termination_reason']}: {episode['abort_message']}",
                           markup=False, highlight=False)
-    console.print(f"{len(episodes)} episode(s) in {wall:.1f} s wall time; results: "
-                  + ", ".join(str(path) for path in files))
-    return {"rows": rows, "episodes": episodes, "files": files}
+    where = f"{args.output}" + (f" (= {run_folders.RESULTS_ROOT / run_folders.LATEST})"
+                                if latest else "")
+    console.print(f"{len(episodes)} episode(s) in {wall:.1f} s wall time; results in "
+                  f"{where}: " + ", ".join(path.name for path in files),
+                  markup=False, highlight=False)
+    return {"rows": analysis.rows, "comparisons": analysis.comparisons,
+            "episodes": episodes, "files": files, "output": args.output}
 
 
 if __name__ == "__main__":

@@ -6,8 +6,8 @@
     python train.py --output runs/dqn_highway --resume    # continue after an interruption
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
-``algo``, ``timesteps``, ``n_envs``, ``seed`` and ``eval`` (``every`` steps, ``episodes``,
-``seed``: the first held-out seed). Hyperparameters come from
+``algo``, ``timesteps``, ``n_envs``, ``seed``, ``checkpoint_every`` and ``eval``
+(``every`` steps, ``episodes``, ``seed``: the first held-out seed). Hyperparameters come from
 ``configs/hyperparams/<algo>.yaml``, keyed by env id (as in rl-baselines3-zoo), and
 ``--hp key=value`` overrides them: the value is parsed as YAML (numbers, lists, mappings;
 never evaluated as Python), dotted keys reach into mappings (``policy_kwargs.net_arch=[64]``).
@@ -17,9 +17,11 @@ The run folder holds ``config.yaml`` (everything above, resolved, with the seed)
 off-policy algorithms, the replay buffer, every ``--checkpoint-every`` steps),
 ``best_model.zip`` (best mean evaluation reward so far), ``evaluations.npz``,
 ``replay_buffer.pkl`` (DQN, SAC: the final buffer),
-``tensorboard/`` (SB3's curves plus ``driving/``: collision and incident rates per
-episode, lap time, mean speed, success) and ``model.zip`` at the end. With ``--resume``
-the newest checkpoint is loaded and training continues to the same total of timesteps.
+``tensorboard/`` (SB3's curves plus ``driving/``: incidents per episode by kind and in
+all, success, mean speed and distance per episode, and lap time from the episodes that
+complete a lap, which training episodes shorter than a lap never do) and ``model.zip`` at
+the end. With ``--resume`` the newest checkpoint is loaded and training continues to the
+same total of timesteps, checkpointing at the run's ``checkpoint_every``.
 Envs run in ``n_envs`` subprocesses (default: one per CPU core).
 """
 
@@ -37,12 +39,13 @@ import gymnasium as gym
 import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents.evaluation import atomic_write_text
+from evaluation.files import atomic_write_text
 
 ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
-RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval"}
+RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every"}
 EVAL_DEFAULTS = {"every": 50_000, "episodes": 4, "seed": 10_000}
+CHECKPOINT_EVERY = 10_000
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -57,7 +60,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--hp", action="append", default=[], metavar="KEY=VALUE",
                         help="hyperparameter override (YAML value; repeatable)")
     parser.add_argument("--output", type=Path, required=True, help="run folder")
-    parser.add_argument("--checkpoint-every", type=int, default=10_000, help="env steps")
+    parser.add_argument("--checkpoint-every", type=int, default=None,
+                        help=f"env steps between checkpoints (default {CHECKPOINT_EVERY:,}; "
+                             "kept in the run's config.yaml, so a resumed run goes on at the "
+                             "same interval)")
     parser.add_argument("--eval-every", type=int, default=None,
                         help="env steps between evaluations (0: none)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --output")
@@ -100,10 +106,10 @@ def apply_overrides(params: dict[str, Any], overrides: list[str]) -> dict[str, A
 
 def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
     """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` ({} if the
-    file has no entry for it: SB3's defaults)."""
+    file has no entry for it: SB3's defaults); every offered algorithm has its file."""
     path = HYPERPARAMS_DIR / f"{algo}.yaml"
     if not path.is_file():
-        return {}
+        raise SystemExit(f"{path}: no hyperparameter file for --algo {algo}")
     table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     return dict(table.get(env_id) or {})
 
@@ -126,7 +132,11 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
     if args.resume:
         if not saved.is_file():
             raise SystemExit(f"--resume: no run to resume in {args.output} (no config.yaml)")
-        return read_yaml(saved)
+        config = read_yaml(saved)
+        config.setdefault("checkpoint_every", CHECKPOINT_EVERY)  # runs from before it was kept
+        if args.checkpoint_every is not None:
+            config["checkpoint_every"] = args.checkpoint_every
+        return config
     if saved.is_file():
         raise SystemExit(f"{args.output} already holds a run; use --resume or another --output")
     data = read_yaml(args.config) if args.config is not None else {}
@@ -151,7 +161,9 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
     return {"env": env_id, "config": dict(data.get("config") or {}), "algo": algo,
             "seed": args.seed if args.seed is not None else int(data.get("seed", 0)),
             "timesteps": int(timesteps), "n_envs": int(n_envs), "hyperparams": hyper,
-            "eval": evaluation}
+            "eval": evaluation,
+            "checkpoint_every": int(args.checkpoint_every or data.get("checkpoint_every",
+                                                                     CHECKPOINT_EVERY))}
 
 
 def algorithm_class(name: str) -> type:
@@ -189,8 +201,12 @@ def driving_callback() -> Any:
                                         sum(incidents.values()))
                 self.logger.record_mean("driving/success", float(summary.get("is_success",
                                                                              False)))
+                # Only episodes that complete a lap have lap times (the committed config's
+                # 240 s episodes never do); every episode has its distance.
                 for lap in summary.get("lap_times") or ():
                     self.logger.record_mean("driving/lap_time_s", lap)
+                if summary.get("distance") is not None:
+                    self.logger.record_mean("driving/distance_m", summary["distance"])
                 if summary.get("mean_speed_mph") is not None:
                     self.logger.record_mean("driving/mean_speed_mph",
                                             summary["mean_speed_mph"])
@@ -244,7 +260,7 @@ def main(argv: list[str] | None = None) -> Path:
             vec_env.observation_space, gym.spaces.Dict) else "MlpPolicy")
         model = algo(policy, vec_env, seed=config["seed"], verbose=0,
                      tensorboard_log=str(args.output / "tensorboard"), **hyper)
-    every = max(args.checkpoint_every // config["n_envs"], 1)
+    every = max(int(config["checkpoint_every"]) // config["n_envs"], 1)
     callbacks = [CheckpointCallback(every, str(checkpoints), name_prefix=config["algo"],
                                     save_replay_buffer=off_policy),
                  driving_callback()]

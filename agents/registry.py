@@ -1,30 +1,29 @@
 """Agents by name, so that scripts can say ``--agents lane_keeping`` and build one per env.
 
 An agent has ``name``, ``reset()`` (start of an episode) and ``act(observation)`` (the
-action for ``env.step``). A factory takes the (unwrapped) env it will drive, so it can read
-the map and the env's configuration.
+action for ``env.step``; see :mod:`agents.protocol`). A factory takes the (unwrapped) env
+it will drive, so it can read the map and the env's configuration. This module is the one
+door of the package for the evaluation machinery (:mod:`evaluation`): it builds agents and
+re-exports the protocol.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any, Protocol
+from pathlib import Path
+from typing import Any
 
 import gymnasium as gym
 
 from agents.highway.fsm import DrivingStyle
 from agents.highway.fsm_agent import fsm_agent
 from agents.lane_keeping import LaneKeepingDriver
+from agents.protocol import Agent, EpisodeAborted
 from agents.track.dbw_agent import dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
-
-class Agent(Protocol):
-    name: str
-
-    def reset(self) -> None: ...
-
-    def act(self, observation: Any) -> Any: ...
+__all__ = ["AGENTS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label", "make_agent",
+           "parse_agent_spec"]
 
 
 AgentFactory = Callable[[gym.Env], Agent]
@@ -114,3 +113,16 @@ def make_agent(name: str, env: gym.Env,
     if kind is None:
         return AGENTS[argument](env)
     return AGENT_KINDS[kind](argument, env, **(options or {}).get(kind, {}))
+
+
+def agent_label(spec: str) -> str:
+    """A short name of an agent for tables and plots: the name itself, or for a
+    ``"kind:argument"`` spec the kind and the argument's last part without its folders and
+    suffix (``"dqn:agents/highway/policies/dqn_highway.zip"`` -> ``"dqn:dqn_highway"``,
+    ``"external:./build/path_planning --port {port}"`` -> ``"external:path_planning"``);
+    a name that is not (or no longer) registered stays as it is."""
+    kind, separator, argument = spec.partition(AGENT_KIND_SEPARATOR)
+    if spec in AGENTS or not separator or kind not in AGENT_KINDS or not argument.split():
+        return spec
+    words = argument.split()
+    return f"{kind}{AGENT_KIND_SEPARATOR}{Path(words[0]).stem or words[0]}"

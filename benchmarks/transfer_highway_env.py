@@ -40,7 +40,6 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.evaluation import atomic_write_text
 from agents.highway_env_adapter import (
     IDLE,
     META_ACTION_NAMES,
@@ -48,6 +47,7 @@ from agents.highway_env_adapter import (
     highway_env_policy_agent,
 )
 from agents.policy_agent import POLICY_KINDS
+from evaluation.files import atomic_write_text
 
 ENV_ID = "highway-fast-v0"
 LANES = 3

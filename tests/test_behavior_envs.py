@@ -189,3 +189,14 @@ def test_committed_policy_drives_a_held_out_seed_cleanly_and_changes_lanes():
     assert summary["incident_total"] == 0 and summary["termination_reason"] == "max_duration"
     assert summary["mean_speed_mph"] > 40.0
     assert agent.behavior.executor.lane_changes >= 1
+
+
+def test_the_behavior_envs_are_exported_and_documented():
+    import pydoc
+
+    import sdc_gym.envs
+
+    for name in ("HighwayLoopBehaviorEnv", "TrackLoopBehaviorEnv"):
+        assert name in sdc_gym.envs.__all__
+        page = pydoc.render_doc(f"sdc_gym.envs.{name}", renderer=pydoc.plaintext)
+        assert "Observation" in page or "observation" in page

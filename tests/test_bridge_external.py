@@ -16,8 +16,8 @@ import gymnasium as gym
 import pytest
 
 import evaluate
-from agents.evaluation import EpisodeSpec, run_episode
 from agents.registry import AGENTS, make_agent, parse_agent_spec
+from evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.bridge import (
     FAULT_REASONS,
     PlannerOptions,

@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 
 import evaluate
-from agents.evaluation import TRACE_KEY, load_traces
 from agents.registry import AGENTS
+from evaluation.episodes import TRACE_KEY
+from evaluation.files import load_traces
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 OVAL = str(CONFIGS / "highway_oval.yaml")
@@ -46,12 +47,28 @@ def test_evaluate_writes_episode_rows_summary_traces_and_plots(tmp_path, capsys)
         assert trace.distance[-1] == pytest.approx(episode["distance"])
         assert trace.time[-1] == pytest.approx(episode["time"])
         assert trace.speed.max() * 2.2369362920544 < 50.0  # lane keeping stays legal
-    for name in ("profiles.png", "lap_times.png", "incident_map.png"):
+    for name in ("means.png", "incidents.png", "profiles.png", "speed_time.png",
+                 "incident_map.png"):
         data = (output / name).read_bytes()
         assert data.startswith(PNG_MAGIC) and len(data) > 5000
         assert output / name in result["files"]
+    assert (output / "report.html") in result["files"]
     assert not list(output.glob(".*.tmp"))  # atomic writes leave no temporary files
     assert "lane_keeping" in capsys.readouterr().out
+    # The agent's row carries its intervals, in the JSON and in agents.csv.
+    speeds = [episode["mean_speed_mph"] for episode in summary["episodes"]]
+    low, high = agent["mean_speed_mph_ci"]
+    assert min(speeds) <= low <= agent["mean_speed_mph"] <= high <= max(speeds)
+    assert agent["mean_speed_mph"] == pytest.approx(np.mean(speeds))
+    assert agent["incidents_per_100_miles"] == 0.0
+    miles = sum(episode["distance"] for episode in summary["episodes"]) / 1609.344
+    assert agent["incidents_per_100_miles_ci"] == pytest.approx([0.0, 368.888 / miles],
+                                                                rel=1e-4)  # Garwood, k = 0
+    (csv_row,) = csv.DictReader((output / "agents.csv").open())
+    assert float(csv_row["mean_speed_mph_ci_low"]) == pytest.approx(low)
+    assert float(csv_row["mean_speed_mph_ci_high"]) == pytest.approx(high)
+    assert summary["run"]["statistics"]["bootstrap_resamples"] == 10_000
+    assert summary["run"]["seeds"] == [0, 1] and summary["comparisons"] == []
 
 
 def test_endurance_drives_on_and_reports_miles_without_incident(tmp_path, capsys):
@@ -128,6 +145,10 @@ def test_default_comparison_is_the_fsm_the_committed_policy_and_the_baseline():
     (["--endurance", "3", "--laps", "2"], "drop --laps"),
     (["--output", ""], "empty string"),
     (["--output", "  "], "empty string"),
+    (["--overwrite"], "--overwrite needs --output"),
+    (["--seeds", "1", "2", "--plot-seed", "7"], "--plot-seed 7 is not among"),
+    (["--bootstrap-resamples", "10"], "--bootstrap-resamples must be >= 100"),
+    (["compare", "one_run"], "at least two run folders"),
 ])
 def test_evaluate_rejects_bad_arguments(argv, message, capsys, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # should a check fail, nothing lands in the checkout
@@ -162,6 +183,7 @@ def _track_episode(agent: str, seed: int, stops: list[float], red: int) -> dict:
     """A track-loop episode summary as TrackLoop-v0 writes it (only the fields used)."""
     return {
         "agent": agent, "seed": seed, "laps": 1, "lap_times": [600.0 + seed],
+        "distance": 7000.0,
         "mean_speed_mph": 22.0, "longest_distance_without_incident": 7000.0,
         "incidents": {"collision": 0, "acceleration": 0, "jerk": 0, "speed": 0, "lane": 0,
                       "off_road": 0, "red_light": red},
@@ -175,7 +197,8 @@ def _track_episode(agent: str, seed: int, stops: list[float], red: int) -> dict:
 
 
 def test_aggregate_reports_red_lights_and_stop_accuracy_on_a_track():
-    from agents.evaluation import aggregate, results_table
+    from evaluation.summary import aggregate
+    from evaluation.tables import incidents_table, track_table, wide_table
 
     episodes = [_track_episode("dbw", 0, [-1.5, -0.4], 0), _track_episode("dbw", 1, [0.3], 1)]
     (row,) = aggregate(episodes)
@@ -185,13 +208,15 @@ def test_aggregate_reports_red_lights_and_stop_accuracy_on_a_track():
     assert row["max_overshoot"] == pytest.approx(0.3)
     assert row["rms_cross_track_error"] == pytest.approx(0.06)  # the worse episode
     assert row["max_lateral_acceleration"] == pytest.approx(3.0)
-    table = results_table([row], "track")
-    headers = [column.header for column in table.columns]
+    assert "short m" in track_table([row]).headers
+    assert "red light" in incidents_table([row]).headers
+    headers = wide_table([row], "track").headers
     assert "red_light" in headers and "short of line m" in headers
+    assert row["incidents_per_100_miles"] == pytest.approx(100.0 / (14_000.0 / 1609.344))
 
 
 def test_highway_rows_have_no_track_columns():
-    from agents.evaluation import aggregate
+    from evaluation.summary import aggregate
 
     episode = _track_episode("lane_keeping", 0, [], 0)
     for key in ("stops", "red_light_violations", "max_overshoot", "rms_cross_track_error",

@@ -1,4 +1,4 @@
-"""Incident reports (agents/incident_reports.py) and stopping at the first incident."""
+"""Incident reports (evaluation/incident_reports.py) and stopping at the first incident."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 import evaluate
-from agents.evaluation import REPORTS_KEY
-from agents.incident_reports import IncidentRecorder
+from evaluation.episodes import REPORTS_KEY
+from evaluation.incident_reports import IncidentRecorder
 
 
 def observation(t: float) -> dict:

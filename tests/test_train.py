@@ -48,6 +48,10 @@ def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path):
     train.main(["--output", str(output), "--resume", "--no-progress"])
     assert PPO.load(model).num_timesteps == 512  # 256 restored + two 128 x 2 rollouts... capped
     assert len((output / "command.txt").read_text().splitlines()) == 2
+    # The resumed run checkpoints at the run's interval (kept in config.yaml), not the
+    # default 10,000 steps: the 512-step checkpoint is written again.
+    assert config["checkpoint_every"] == 256
+    assert (output / "checkpoints" / "ppo_512_steps.zip").is_file()
     with pytest.raises(SystemExit, match="already holds a run"):
         train.main(args)
 
@@ -114,3 +118,46 @@ def test_sac_trains_the_continuous_variant(tmp_path):
     sac = SAC.load(model)
     assert sac.num_timesteps == 200 and sac.action_space.shape == (2,)
     assert (output / "replay_buffer.pkl").is_file()
+
+
+def test_every_offered_algorithm_has_hyperparameters_for_the_behavior_envs():
+    import inspect
+
+    for algo in train.ALGORITHMS:
+        path = train.HYPERPARAMS_DIR / f"{algo}.yaml"
+        assert path.is_file(), f"--algo {algo} is offered without {path}"
+        accepted = set(inspect.signature(train.algorithm_class(algo)).parameters)
+        for env_id in ("sdc_gym/HighwayLoopBehavior-v0", "sdc_gym/TrackLoopBehavior-v0"):
+            params = train.load_hyperparams(algo, env_id)
+            assert params, f"{path} has no entry for {env_id}"
+            unknown = set(params) - accepted - {"n_envs", "timesteps"}
+            assert not unknown, f"{path} [{env_id}]: not {algo.upper()} arguments: {unknown}"
+
+
+def test_a2c_trains_with_its_hyperparameters(tmp_path):
+    from stable_baselines3 import A2C
+
+    model = train.main(["--config", str(write_config(tmp_path)), "--algo", "a2c",
+                        "--output", str(tmp_path / "a2c"), "--n-envs", "1",
+                        "--timesteps", "64", "--no-progress"])
+    a2c = A2C.load(model)
+    assert a2c.num_timesteps == 64 and a2c.n_steps == 32  # from a2c.yaml
+
+
+def test_driving_metrics_log_distance_always_and_lap_time_only_with_laps():
+    from types import SimpleNamespace
+
+    logged: dict[str, list[float]] = {}
+    callback = train.driving_callback()
+    callback.model = SimpleNamespace(logger=SimpleNamespace(
+        record_mean=lambda key, value: logged.setdefault(key, []).append(value)))
+    short = {"incidents": {"collision": 1, "lane": 0}, "is_success": False, "lap_times": [],
+             "distance": 4200.0, "mean_speed_mph": 39.1}
+    lap = {**short, "incidents": {}, "lap_times": [330.5], "distance": 6950.0}
+    callback.locals = {"infos": [{"summary": short}, {"summary": lap}, {}],
+                       "dones": [True, True, False]}
+    assert callback._on_step()
+    assert logged["driving/distance_m"] == [4200.0, 6950.0]
+    assert logged["driving/lap_time_s"] == [330.5]  # from the episode with a lap only
+    assert logged["driving/collision_per_episode"] == [1]
+    assert logged["driving/incidents_per_episode"] == [1, 0]

@@ -1,0 +1,227 @@
+"""Run many episodes and collect their results, in this process or in worker processes.
+
+:func:`run_episodes` hands the specs to a *backend* and shows a rich progress bar counting
+laps (with a line per running episode that moves during the episode, useful for a single
+long endurance run). A backend is anything with ``run(specs, events)`` that runs every
+spec somewhere and tells ``events`` (:class:`EpisodeEvents`) when an episode starts,
+advances and finishes:
+
+* :class:`InProcessBackend`: one after the other in this process;
+* :class:`ProcessPoolBackend`: a local pool of worker processes
+  (:class:`concurrent.futures.ProcessPoolExecutor`), each pinned to one math thread.
+
+Another executor (a cluster) plugs in as one more backend with the same two methods'
+contract; nothing else in the evaluation depends on where episodes run.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Sequence
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from queue import Empty
+from typing import Any, Protocol
+
+from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_gym.units import METERS_PER_MILE
+
+
+class EpisodeEvents(Protocol):
+    """What a backend reports while it runs the specs (indices into the spec list)."""
+
+    def started(self, index: int) -> None: ...
+
+    def progress(self, index: int, laps: float, fields: dict[str, float]) -> None: ...
+
+    def finished(self, index: int, result: dict[str, Any]) -> None: ...
+
+
+class EpisodeBackend(Protocol):
+    """Runs every spec once and reports through ``events``; returns when all are done.
+
+    An exception of an episode propagates (the remaining episodes are cancelled).
+    """
+
+    def run(self, specs: Sequence[EpisodeSpec], events: EpisodeEvents) -> None: ...
+
+
+def progress_fields(info: dict[str, Any]) -> dict[str, float]:
+    """The few numbers of a running episode that the progress line shows."""
+    return {"distance": float(info["distance"]),
+            "clean": float(info["distance_without_incident"]),
+            "incidents": float(info["incidents"])}
+
+
+class InProcessBackend:
+    """Every episode in this process, one after the other (``--workers 1``)."""
+
+    def run(self, specs: Sequence[EpisodeSpec], events: EpisodeEvents) -> None:
+        for index, spec in enumerate(specs):
+            events.started(index)
+
+            def report(laps: float, info: dict[str, Any], index: int = index) -> None:
+                events.progress(index, laps, progress_fields(info))
+
+            events.finished(index, run_episode(spec, report))
+
+
+WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+"""Thread counts pinned to 1 in worker processes (unless set): the workers already fill the
+cores, and a torch model (the light classifiers) using every core in every worker ran
+~10 x slower than single-threaded."""
+
+_WORKER_QUEUE: Any = None  # a worker process's progress queue, set by _init_worker
+
+
+def _init_worker(queue: Any) -> None:
+    global _WORKER_QUEUE  # per-process state of the pool's workers
+    _WORKER_QUEUE = queue
+    for variable in WORKER_THREAD_VARIABLES:  # read by torch when a worker imports it
+        os.environ.setdefault(variable, "1")
+
+
+def _run_in_worker(index: int, spec: EpisodeSpec) -> dict[str, Any]:
+    queue = _WORKER_QUEUE
+
+    def report(laps: float, info: dict[str, Any]) -> None:
+        queue.put((index, laps, progress_fields(info)))
+
+    return run_episode(spec, report)
+
+
+class ProcessPoolBackend:
+    """Episodes in ``workers`` local processes; progress comes back through a queue.
+
+    ``poll_s`` is how often the parent looks at the queue and the finished episodes.
+    """
+
+    def __init__(self, workers: int, poll_s: float = 0.2) -> None:
+        if workers < 1:
+            raise ValueError(f"workers must be >= 1, got {workers}")
+        self.workers = workers
+        self.poll_s = poll_s
+
+    def run(self, specs: Sequence[EpisodeSpec], events: EpisodeEvents) -> None:
+        if not specs:
+            return
+        context = multiprocessing.get_context()
+        queue = context.Queue()
+        done_indices: set[int] = set()
+
+        def drain() -> None:
+            while True:
+                try:
+                    index, laps, fields = queue.get_nowait()
+                except Empty:
+                    return
+                if index not in done_indices:
+                    events.progress(index, laps, fields)
+
+        try:
+            with ProcessPoolExecutor(max_workers=min(self.workers, len(specs)),
+                                     mp_context=context, initializer=_init_worker,
+                                     initargs=(queue,)) as pool:
+                futures = {pool.submit(_run_in_worker, i, spec): i
+                           for i, spec in enumerate(specs)}
+                pending = set(futures)
+                try:
+                    while pending:
+                        done, pending = wait(pending, timeout=self.poll_s,
+                                             return_when=FIRST_COMPLETED)
+                        drain()
+                        for future in done:
+                            index = futures[future]
+                            done_indices.add(index)
+                            events.finished(index, future.result())
+                except BaseException:
+                    pool.shutdown(wait=False, cancel_futures=True)
+                    raise
+        finally:
+            queue.close()
+
+
+def default_backend(workers: int, episodes: int) -> EpisodeBackend:
+    """In this process for one worker or one episode, else a local process pool."""
+    return InProcessBackend() if workers <= 1 or episodes <= 1 else ProcessPoolBackend(workers)
+
+
+class _ProgressDisplay:
+    """A rich progress bar: laps of all episodes, plus one line per running episode.
+
+    It is the runner's :class:`EpisodeEvents`: it also collects the results.
+    """
+
+    def __init__(self, specs: Sequence[EpisodeSpec], enabled: bool) -> None:
+        from rich.progress import (
+            BarColumn,
+            Progress,
+            TextColumn,
+            TimeElapsedColumn,
+            TimeRemainingColumn,
+        )
+
+        self.specs = specs
+        self.results: list[dict[str, Any] | None] = [None] * len(specs)
+        self.laps = [float(spec.env_config.get("laps", 1)) for spec in specs]
+        self.done = [0.0] * len(specs)
+        self.finished_count = 0
+        self.bar = Progress(
+            TextColumn("{task.description}"), BarColumn(bar_width=20),
+            TextColumn("{task.completed:.1f}/{task.total:g} laps"), TimeElapsedColumn(),
+            TimeRemainingColumn(), TextColumn("{task.fields[status]}"),
+            disable=not enabled, transient=True)
+        self.total = self.bar.add_task(self._overall(), total=sum(self.laps), status="")
+        self.tasks: dict[int, Any] = {}
+
+    def _overall(self) -> str:
+        return f"episodes {self.finished_count}/{len(self.specs)}"
+
+    def __enter__(self) -> _ProgressDisplay:
+        self.bar.__enter__()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.bar.__exit__(*exc)
+
+    def started(self, index: int) -> None:
+        if index not in self.tasks:
+            spec = self.specs[index]
+            self.tasks[index] = self.bar.add_task(
+                f"  {spec.agent} seed {spec.seed}", total=self.laps[index], status="")
+
+    def progress(self, index: int, laps: float, fields: dict[str, float]) -> None:
+        self.started(index)
+        laps = min(laps, self.laps[index])
+        status = (f"{fields['distance'] / METERS_PER_MILE:.1f} mi, "
+                  f"{fields['clean'] / METERS_PER_MILE:.1f} without incident, "
+                  f"{fields['incidents']:.0f} incidents")
+        self.bar.update(self.tasks[index], completed=laps, status=status)
+        self._set(index, laps)
+
+    def finished(self, index: int, result: dict[str, Any]) -> None:
+        self.results[index] = result
+        if index in self.tasks:
+            self.bar.remove_task(self.tasks.pop(index))
+        self.finished_count += 1
+        self._set(index, self.laps[index])
+
+    def _set(self, index: int, laps: float) -> None:
+        self.done[index] = laps
+        self.bar.update(self.total, completed=sum(self.done), description=self._overall())
+
+
+def run_episodes(specs: Sequence[EpisodeSpec], workers: int = 1, progress: bool = True,
+                 backend: EpisodeBackend | None = None) -> list[dict[str, Any]]:
+    """Run every spec; results in the specs' order.
+
+    ``backend`` defaults to :func:`default_backend` for ``workers``. ``progress`` shows a
+    rich bar counting laps, with a line per running episode.
+    """
+    backend = backend or default_backend(workers, len(specs))
+    with _ProgressDisplay(specs, progress) as display:
+        backend.run(specs, display)
+    missing = [specs[i].agent for i, result in enumerate(display.results) if result is None]
+    if missing:
+        raise RuntimeError(f"the backend returned without results for {missing}")
+    return [result for result in display.results if result is not None]
