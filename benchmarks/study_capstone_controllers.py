@@ -38,6 +38,7 @@ import sdc_gym  # noqa: E402,F401  (registers the env ids)
 from sdc_gym.lights.traffic_lights import RED  # noqa: E402
 from tests.planners.capstone_twist_controllers import (  # noqa: E402
     CARS,
+    drive_episode,
     original_track_config,
     with_controller,
 )
@@ -50,13 +51,7 @@ def run(job: tuple[str, str, int, int]) -> dict:
     controller, car, seed, laps = job
     env = gym.make("sdc_gym/TrackLoop-v0", config=original_track_config(
         laps=laps, max_duration=900.0 * laps, vehicle_overrides=CARS[car]))
-    agent = with_controller(env, controller)
-    observation, _ = env.reset(seed=seed)
-    agent.reset()
-    while True:
-        observation, _, terminated, truncated, info = env.step(agent.act(observation))
-        if terminated or truncated:
-            break
+    info = drive_episode(env, with_controller(env, controller), seed)
     env.close()
     return info["summary"]
 

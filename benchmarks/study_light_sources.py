@@ -34,6 +34,7 @@ sys.path.insert(0, str(ROOT))
 import sdc_gym  # noqa: E402,F401  (registers the env ids)
 from agents.track.dbw_agent import dbw_agent, light_source_for  # noqa: E402
 from sdc_gym.lights.traffic_lights import RED, UNKNOWN, YELLOW  # noqa: E402
+from tests.planners.capstone_twist_controllers import drive_episode  # noqa: E402
 
 CONFIG = ROOT / "configs" / "track_loop.yaml"
 
@@ -66,13 +67,7 @@ def run(job: tuple[str, int]) -> dict:
     spec = yaml.safe_load(CONFIG.read_text())
     env = gym.make(spec["env"], config=spec["config"])
     source = CheckedSource(light_source_for(env, name))
-    agent = dbw_agent(env, source, name=f"dbw_{name}")
-    observation, _ = env.reset(seed=seed)
-    agent.reset()
-    while True:
-        observation, _, terminated, truncated, info = env.step(agent.act(observation))
-        if terminated or truncated:
-            break
+    info = drive_episode(env, dbw_agent(env, source, name=f"dbw_{name}"), seed)
     env.close()
     summary = info["summary"]
     return {"laps": summary["lap_times"], "red": summary["red_light_violations"],

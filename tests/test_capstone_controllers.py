@@ -23,6 +23,7 @@ from tests.planners.capstone_twist_controllers import (
     CARS,
     ProportionalBrakeTwistController,
     WalkthroughTwistController,
+    drive_episode,
     original_track_config,
     with_controller,
 )
@@ -40,14 +41,9 @@ def drive(controller: str, car: str = "sim", seconds: float = 240.0) -> tuple[di
     """The stretch past the first three lights; the summary and the last info."""
     env = gym.make("sdc_gym/TrackLoop-v0", config=original_track_config(
         lights=LIGHTS, max_duration=seconds, vehicle_overrides=CARS[car]))
-    agent = with_controller(env, controller)
-    observation, info = env.reset(seed=0)
-    agent.reset()
-    while True:
-        observation, _, terminated, truncated, info = env.step(agent.act(observation))
-        if terminated or truncated:
-            env.close()
-            return info["summary"], info
+    info = drive_episode(env, with_controller(env, controller), seed=0)
+    env.close()
+    return info["summary"], info
 
 
 @pytest.mark.parametrize("controller", ["sdc_gym", "walkthrough", "proportional_brake"])

@@ -93,22 +93,20 @@ class _Clock:
         return dt if dt > 0.0 else self.nominal_s
 
 
-class WalkthroughTwistController:
-    """The course walkthrough's twist controller (see the module docstring)."""
+class _StandIn:
+    """What both stand-ins share: the vehicle, the original yaw controller, a throttle PID,
+    the clock; with drive-by-wire off only the PID is reset and nothing is sent."""
 
-    def __init__(self, vehicle: VehicleParameters, *, hold_torque: float = 400.0,
-                 sample_time_s: float = PHYSICS_DT) -> None:
+    def __init__(self, vehicle: VehicleParameters, throttle_pid: PID,
+                 sample_time_s: float) -> None:
         self.vehicle = vehicle
-        self.hold_torque = float(hold_torque)
         self.yaw = _yaw_controller(vehicle)
-        self.throttle_pid = PID(0.3, 0.1, 0.0, 0.0, 0.2)
+        self.throttle_pid = throttle_pid
         self.sample_time_s = sample_time_s
         self.reset()
 
     def reset(self) -> None:
         self.throttle_pid.reset()
-        self.velocity_filter = LowPassFilter(0.5, 0.02)
-        self._filter_ready = False
         self._clock = _Clock(self.sample_time_s)
 
     def control(self, now_s: float, target_linear_mps: float, target_angular_radps: float,
@@ -117,13 +115,36 @@ class WalkthroughTwistController:
         if not dbw_enabled:
             self.throttle_pid.reset()
             return NO_COMMAND
+        return self._command(self._clock.tick(now_s), target_linear_mps,
+                             target_angular_radps, current_speed_mps)
+
+    def _command(self, dt: float, target_linear_mps: float, target_angular_radps: float,
+                 speed_mps: float) -> DBWCommand:
+        raise NotImplementedError
+
+
+class WalkthroughTwistController(_StandIn):
+    """The course walkthrough's twist controller (see the module docstring)."""
+
+    def __init__(self, vehicle: VehicleParameters, *, hold_torque: float = 400.0,
+                 sample_time_s: float = PHYSICS_DT) -> None:
+        self.hold_torque = float(hold_torque)
+        super().__init__(vehicle, PID(0.3, 0.1, 0.0, 0.0, 0.2), sample_time_s)
+
+    def reset(self) -> None:
+        super().reset()
+        self.velocity_filter = LowPassFilter(0.5, 0.02)
+        self._filter_ready = False
+
+    def _command(self, dt: float, target_linear_mps: float, target_angular_radps: float,
+                 speed_mps: float) -> DBWCommand:
         if not self._filter_ready:  # the original filter passes its first sample through
-            self.velocity_filter.value = current_speed_mps
+            self.velocity_filter.value = speed_mps
             self._filter_ready = True
-        speed = self.velocity_filter.filt(current_speed_mps)
+        speed = self.velocity_filter.filt(speed_mps)
         steering = self.yaw.steering(target_linear_mps, target_angular_radps, speed)
         error = target_linear_mps - speed
-        throttle = self.throttle_pid.step(error, self._clock.tick(now_s))
+        throttle = self.throttle_pid.step(error, dt)
         brake = 0.0
         if target_linear_mps == 0.0 and speed < 0.1:
             throttle, brake = 0.0, self.hold_torque
@@ -134,41 +155,27 @@ class WalkthroughTwistController:
         return DBWCommand(throttle, brake, steering)
 
 
-class ProportionalBrakeTwistController:
+class ProportionalBrakeTwistController(_StandIn):
     """PID throttle, brake proportional to the excess speed, none below 0.1 m/s."""
 
     def __init__(self, vehicle: VehicleParameters, *, brake_gain_per_s: float = 1.5,
                  brake_deadband_mps: float = 0.1,
                  sample_time_s: float = PHYSICS_DT) -> None:
-        self.vehicle = vehicle
         self.brake_gain_per_s = float(brake_gain_per_s)
         self.brake_deadband_mps = float(brake_deadband_mps)
-        self.yaw = _yaw_controller(vehicle)
-        self.throttle_pid = PID(0.4, 0.1, 0.0, 0.0, vehicle.accel_limit)
-        torque_per_decel = vehicle.total_mass * vehicle.wheel_radius
-        self.torque_per_decel = torque_per_decel
-        self.max_brake = abs(vehicle.decel_limit) * torque_per_decel
-        self.sample_time_s = sample_time_s
-        self.reset()
+        self.torque_per_decel = vehicle.total_mass * vehicle.wheel_radius
+        self.max_brake = abs(vehicle.decel_limit) * self.torque_per_decel
+        super().__init__(vehicle, PID(0.4, 0.1, 0.0, 0.0, vehicle.accel_limit), sample_time_s)
 
-    def reset(self) -> None:
-        self.throttle_pid.reset()
-        self._clock = _Clock(self.sample_time_s)
-
-    def control(self, now_s: float, target_linear_mps: float, target_angular_radps: float,
-                twist_time_s: float, current_speed_mps: float, velocity_time_s: float,
-                dbw_enabled: bool) -> DBWCommand:
-        if not dbw_enabled:
-            self.throttle_pid.reset()
-            return NO_COMMAND
-        speed = current_speed_mps
-        steering = self.yaw.steering(target_linear_mps, target_angular_radps, speed)
-        excess = speed - target_linear_mps
-        throttle = self.throttle_pid.step(-excess, self._clock.tick(now_s))
+    def _command(self, dt: float, target_linear_mps: float, target_angular_radps: float,
+                 speed_mps: float) -> DBWCommand:
+        steering = self.yaw.steering(target_linear_mps, target_angular_radps, speed_mps)
+        excess = speed_mps - target_linear_mps
+        throttle = self.throttle_pid.step(-excess, dt)
         if excess <= 0.0:
             return DBWCommand(throttle, 0.0, steering)
         brake = 0.0
-        if speed > self.brake_deadband_mps:
+        if speed_mps > self.brake_deadband_mps:
             brake = min(self.brake_gain_per_s * excess * self.torque_per_decel, self.max_brake)
         return DBWCommand(0.0, brake, steering)
 
@@ -197,11 +204,23 @@ def with_controller(env: gym.Env, name: str) -> DBWStackAgent:
     return agent
 
 
+def drive_episode(env: gym.Env, agent: Any, seed: int) -> dict[str, Any]:
+    """Reset ``env`` with ``seed`` and ``agent``, step until the episode ends; the last info
+    (its ``"summary"`` is the episode's)."""
+    observation, info = env.reset(seed=seed)
+    agent.reset()
+    while True:
+        observation, _, terminated, truncated, info = env.step(agent.act(observation))
+        if terminated or truncated:
+            return info
+
+
 __all__ = [
     "CARS",
     "STAND_INS",
     "ProportionalBrakeTwistController",
     "WalkthroughTwistController",
+    "drive_episode",
     "original_track_config",
     "with_controller",
 ]
