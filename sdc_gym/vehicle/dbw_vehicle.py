@@ -109,11 +109,12 @@ def _is_real(value: object) -> bool:
 class VehicleParameters:
     """Everything that defines one car; see the module docstring for the equations.
 
-    The first block are the original course's parameters (``spec/track_sim.md``); the
-    second block are this model's own physics, chosen to be plausible for the car (see
-    :data:`SIM_VEHICLE` and :data:`SITE_VEHICLE` for the values and why). Override a
-    field with ``dataclasses.replace(SIM_VEHICLE, drag_coefficient=0.0)`` or
-    :meth:`replace`.
+    The first block are the original course's parameters (``spec/track_sim.md``, what the
+    controllers are told); the second block are the car's physics: for the sim car those
+    of the original simulator's Unity car, for the site car plausible figures for the real
+    one (see :data:`SIM_VEHICLE`, :data:`SITE_VEHICLE` and ``docs/track_vehicle.md`` for
+    the values and why). Override a field with ``dataclasses.replace(SIM_VEHICLE,
+    linear_drag=0.0)`` or :meth:`replace`.
 
     Attributes:
         name: preset name ("sim", "site" or anything for custom cars).
