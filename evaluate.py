@@ -280,7 +280,8 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
 def episode_specs(args: argparse.Namespace, env_id: str,
                   env_config: dict[str, Any]) -> list[EpisodeSpec]:
     """One episode per (agent, seed), with the incident and external planner options."""
-    return [EpisodeSpec(agent, env_id, seed, env_config,
+    return [EpisodeSpec(agent, env_id, seed, (external.external_env_config(env_config)
+                                              if external.is_external(agent) else env_config),
                         agent_options=({external.EXTERNAL_KIND: external.external_options(
                             args, agent, seed)} if external.is_external(agent) else {}),
                         incident_history=args.incident_history,
@@ -352,7 +353,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         console = Console(width=260)
 
     started = time.perf_counter()
-    episodes = run_episodes(specs, workers=workers, progress=not args.no_progress)
+    with external.planner_maps(args, probe.road):
+        episodes = run_episodes(specs, workers=workers, progress=not args.no_progress)
     wall = time.perf_counter() - started
 
     analysis = analyse(episodes, statistics_settings(args))

@@ -12,8 +12,10 @@ from gymnasium import spaces
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.perfect_controller import adopted_start, frames_of_motion
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS, TopDownRenderEnv
 from sdc_gym.geometry.collision import contact_reach_sq, first_contact
+from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
@@ -28,7 +30,6 @@ PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
 ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
 EGO_LENGTH_M = 4.7
 EGO_WIDTH_M = 1.9
-ON_POINT_M = 0.005  # m: a new path's point this close to the car is the one it stands on
 
 
 def _dataclass_defaults(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
@@ -64,7 +65,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
     so the spacing of the points is the speed. A path that runs out stops the car dead,
     which reads as an enormous acceleration. A planner written for the original therefore
     drives here unchanged: the observation carries the original's telemetry fields and
-    ``info["telemetry"]`` the exact telemetry object the original would send.
+    ``info["telemetry"]`` the telemetry object the original would send, in the original's
+    conventions (see "Telemetry" below).
 
     Traffic (12 cars by default) is simulated with numpy arrays: IDM car following, lane
     changes when the target lane is clear by +-20 m, desired speeds of 40-50 mph for cars
@@ -89,9 +91,12 @@ class HighwayLoopEnv(TopDownRenderEnv):
     same). NaN and inf are never markers: a non-finite, non-numeric or out-of-bounds point
     raises ``ValueError`` naming the point. An empty path is allowed: the car stops dead.
 
-    When a path arrives, points before the one nearest the car are dropped (the original's
-    rule), and that one too if the car already stands on it (within 5 mm), so a planner
-    that resends its consumed points never stalls the car. A path takes effect
+    When a path arrives, points before the one nearest the car are dropped, and that one
+    too unless it is the path's first point and not exactly under the car (the original's
+    ``perfect_controller`` rule, :mod:`sdc_gym.envs.perfect_controller`), so a planner
+    that resends its consumed points never stalls the car. A path's last point is never
+    driven to: with one point left, the next frame removes it and the car stands still
+    (the previous path is then empty, like the original's). A path takes effect
     ``latency_steps`` physics frames after ``step`` is called; until then the car keeps
     consuming the old path. With the default ``latency_steps = steps_per_action`` it
     arrives at the end of the step, just before the observation (the original's
@@ -114,7 +119,25 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
     at the loop length); d is the offset to the right of the yellow centre line, so lane
-    ``i`` is centred at ``d = 2 + 4 i``.
+    ``i`` is centred at ``d = 2 + 4 i``. The observation is always in this exact frame:
+    the env's own agents (the FSM planner, the behavior envs' perception, the committed
+    policies) read it, whatever the ``frenet`` setting.
+
+    ## Telemetry
+
+    ``info["telemetry"]`` (with ``telemetry_info``, the default) is the flat object the
+    original sends in ``42["telemetry",{...}]``, field for field: x, y (m), yaw (degrees,
+    counter-clockwise from +x, in [0, 360)), speed (mph), s, d, previous_path_x/y (the
+    unconsumed points), end_path_s/d (of the last unconsumed point; 0, 0 when there is
+    none), sensor_fusion rows ``[id, x, y, vx, vy, s, d]`` with ids the fixed slots
+    ``0..C-1``; every number a 32-bit float rounded to 7 significant digits. With
+    ``frenet: original`` (the default) its s and d are the original's: along the waypoint
+    polyline of the map file (``CarAIControl.getFrenetFrame``, wrapping at the file's loop
+    length, 6945.554 m on the original map; end_path from the ego car's closest waypoint),
+    see :mod:`sdc_gym.geometry.original_frenet`; ``frenet: exact`` sends the exact ones of
+    the observation instead. On the original map the first message reads x 909.48,
+    y 1128.67, yaw 0, speed 0, s 124.8337, d 6.164966: the original's start (s 124.8336,
+    d 6.164833) within the 7-digit rounding of the map file's waypoints.
 
     ## Rewards
 
@@ -124,13 +147,17 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     ## Starting State
 
-    The ego car stands still in the middle lane at s = 124.8 m (the original's start),
-    facing along the road, with an empty path. Traffic is placed around it from the seed.
+    The ego car stands still in the middle lane at s = 124.8 m (the original's start) with
+    an empty path: on the original map at (909.48, 1128.67) facing +x (yaw 0) like the
+    original's car, on the built-in maps (and at a ``start_s``/``start_d`` of the config)
+    facing along the road. It keeps that heading until a path moves it. Traffic is placed
+    around it from the seed.
 
     ## Episode End
 
-    Terminated: a collision when ``terminate_on_collision`` (default; set it False to
-    count collisions and drive on, like the original), or ``laps`` laps completed
+    Terminated: a collision when ``terminate_on_collision`` (default, for RL; set it False
+    to count collisions and drive on, like the original and like ``evaluate.py`` does for
+    external planners), or ``laps`` laps completed
     (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
     carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
     distance without incident, and ``incident_log``: each incident's kind, time, step,
@@ -167,6 +194,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
                             "speed": -1.0, "lane": -1.0, "off_road": -1.0},
         "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
+        "frenet": "original",        # telemetry s/d: "original" (waypoint polyline) | "exact"
         **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
     }
 
@@ -185,6 +213,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
                 "latency_steps", "None or an int >= 0", cfg["latency_steps"])
         require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
         require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
+                f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
 
         self.road: HighwayMap = get_highway_map(cfg["map"])
         traffic_cfg = dict(cfg["traffic"])
@@ -244,6 +274,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._all_rows_present = self.sensor_config.dropout_probability == 0.0
         self._reach_sq: NDArray[np.float64] | None = None  # contact reach per traffic car ...
         self._reach_version = -1  # ... for this traffic.sizes_version
+        # The telemetry's s/d convention (the Dict observation always has the exact ones).
+        self._telemetry_frenet = (self.road.original_frenet if cfg["frenet"] == "original"
+                                  else None)
         self._state_ready = False
 
     # ------------------------------------------------------------------ Gymnasium API
@@ -256,7 +289,11 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._s = float(road.reference.wrap_s(start_s))
         self._d = float(start_d)
         self._xy = road.reference.to_xy(self._s, self._d).astype(np.float64)
-        self._yaw = float(road.reference.heading(self._s))
+        # The original's car faces +x at its start (yaw exactly 0 in the first telemetry)
+        # until a path turns it; our own maps, and a start set in the config, face the road.
+        at_map_start = self.config["start_s"] is None and self.config["start_d"] is None
+        self._yaw = (road.start_heading() if at_map_start
+                     else float(road.reference.heading(self._s)))
         self._speed = 0.0
         self._path = self._empty_path
         self._path_start = 0
@@ -375,25 +412,15 @@ class HighwayLoopEnv(TopDownRenderEnv):
         return s[:frames], d[:frames]
 
     def _apply_path(self, path: NDArray[np.float64]) -> None:
-        """Adopt a newly arrived path, dropping the points before the one nearest the car.
-
-        A nearest point the car already stands on (within ``ON_POINT_M``: more than the
-        7-significant-digit rounding of echoed points, less than the seed's smallest 9 mm
-        step) is dropped too:
-        the car consumed it, and placing the car on it again would be a frame at zero
-        speed. That happens every cycle with latency, because a planner's path starts with
-        the points the car consumed while the reply was on its way.
-        """
+        """Adopt a newly arrived path by the original's rule
+        (:func:`~sdc_gym.envs.perfect_controller.adopted_start`): the points before the
+        one nearest the car are dropped, and that one too unless it is the first point
+        and not exactly under the car. A planner that resends the points the car consumed
+        while its reply was on the way so never stalls the car."""
         if len(path) == 0:
             self._path, self._path_start = self._empty_path, 0
             return
-        offset = path - self._xy  # squared distances: np.sum(offset**2, axis=1), in
-        offset *= offset          # cheaper calls (the same two-term sums)
-        distance_sq = offset[:, 0] + offset[:, 1]
-        nearest = int(distance_sq.argmin())
-        if distance_sq[nearest] <= ON_POINT_M**2:
-            nearest += 1
-        self._path, self._path_start = path, nearest
+        self._path, self._path_start = path, adopted_start(path, self._xy)
 
     def _drive_ego(self, frames: int) -> tuple[NDArray[np.float64], NDArray[np.float64],
                                                NDArray[np.float64]]:
@@ -411,7 +438,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
             if pending:
                 horizon = min(horizon, pending[0][0] - self._frame)
             path, first = self._path, self._path_start
-            moves = min(horizon, max(len(path) - first - 1, 0))
+            moves, discard_last = frames_of_motion(len(path) - first, horizon)
             if moves:
                 stop = first + moves
                 track[done + 1:done + 1 + moves] = path[first:stop]
@@ -420,6 +447,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
                 self._path_start = stop
                 self._xy = path[stop - 1]
                 self._yaw = float(yaw[done + moves - 1])
+            if discard_last:  # one point left: a frame removes it, the car stands still
+                self._path_start = len(path)
             if moves < horizon:
                 # Path exhausted: the car stands where it is (the original's stop dead).
                 track[done + 1 + moves:done + 1 + horizon] = self._xy
@@ -484,7 +513,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
             info["telemetry"] = TelemetryMessage(
                 *self._xy.tolist(), self._yaw, self._speed, self._s, self._d,
                 self._remaining_path(), *self._end_sd,
-                self._fusion if self._all_rows_present else self._fusion[self._fusion_mask])
+                self._fusion if self._all_rows_present else self._fusion[self._fusion_mask],
+                self._telemetry_frenet)
         return info
 
     def summary(self) -> dict[str, Any]:

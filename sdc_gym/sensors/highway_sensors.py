@@ -7,9 +7,12 @@ where some cars report ``s = d = 0`` for several frames (the seed planner falls 
 x, y there). All are off by default, so the default sensor is the original's noiseless one.
 
 :func:`telemetry_message` builds the flat dict the original sends in
-``42["telemetry",{...}]``: yaw in degrees, speed in mph, numbers rounded to the 7
-significant digits of the original's 32-bit float printing. The env hands it out as a
-:class:`TelemetryMessage`, which builds that dict only when first read.
+``42["telemetry",{...}]``: yaw in degrees, speed in mph, every number first made a 32-bit
+float and then rounded to the 7 significant digits the original prints (its
+``JSONObject`` keeps floats and prints them with C#'s ``float.ToString()``). The env hands
+it out as a :class:`TelemetryMessage`, which builds that dict only when first read, with
+the Frenet fields in the original's convention unless the env says ``frenet: exact``
+(:mod:`sdc_gym.sensors.original_telemetry`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.original_frenet import OriginalFrenet
+from sdc_gym.sensors.original_telemetry import original_frenet_fields
 from sdc_gym.units import MPS_TO_MPH
 
 FUSION_FIELDS = ("id", "x", "y", "vx", "vy", "s", "d")
@@ -115,7 +120,7 @@ class HighwaySensors:
 
 
 def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[np.float64]:
-    """Round to ``digits`` significant digits, like printing a 32-bit float as text."""
+    """Round to ``digits`` significant digits, like printing a number as ``%.7g`` text."""
     values = np.asarray(values, dtype=np.float64)
     magnitude = np.abs(values)
     exponent = np.floor(np.log10(np.where(magnitude > 0, magnitude, 1.0)))
@@ -126,15 +131,24 @@ def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[n
 def telemetry_message(
     x: float, y: float, yaw: float, speed: float, s: float, d: float,
     previous_path: NDArray[np.float64], end_path_s: float, end_path_d: float,
-    sensor_fusion: NDArray[np.float64],
+    sensor_fusion: NDArray[np.float64], frenet: OriginalFrenet | None = None,
 ) -> dict[str, Any]:
     """The flat telemetry object of the original (yaw in rad and speed in m/s go in; the
-    message carries degrees and mph). ``sensor_fusion`` holds the present rows only."""
+    message carries degrees and mph). ``sensor_fusion`` holds the present rows only.
+
+    ``frenet``: the map's :class:`~sdc_gym.geometry.original_frenet.OriginalFrenet` to
+    report s, d, end_path_s/d and the fusion rows' s, d as the original does (from the
+    positions; the s, d passed in are then unused), or ``None`` to send them as given.
+    """
+    if frenet is not None:
+        s, d, end_path_s, end_path_d, sensor_fusion = original_frenet_fields(
+            frenet, x, y, previous_path, sensor_fusion)
     scalars = np.array([x, y, np.degrees(yaw) % 360.0, speed * MPS_TO_MPH, s, d, end_path_s,
                         end_path_d])
-    # One rounding pass over every number of the message (it runs every env step).
+    # One pass over every number of the message (it runs every env step): to 32 bits,
+    # then to the 7 significant digits the original prints.
     flat = round_significant(np.concatenate([scalars, previous_path.T.ravel(),
-                                             sensor_fusion.ravel()]))
+                                             sensor_fusion.ravel()]).astype(np.float32))
     count = len(previous_path)
     ego = flat[:8].tolist()
     rows = flat[8 + 2 * count:].reshape(-1, 7).tolist()

@@ -289,7 +289,9 @@ class HighwayTraffic:
 
     After :meth:`reset` or :meth:`advance`, these ``(n,)`` arrays hold the current state
     (treat them as read-only; ``advance`` replaces rather than mutates the kinematic ones):
-    ``ids`` (a respawned car gets a new id), ``s``, ``d``, ``speed``, ``lane`` (the lane
+    ``ids`` (fixed slots ``0..n-1``: a respawned car keeps its slot's id, as in the
+    original, whose sensor fusion numbers its list of cars), ``spawn_count`` (how often each
+    slot has been respawned since the reset), ``s``, ``d``, ``speed``, ``lane`` (the lane
     holding the car's centre), ``target_lane`` (the destination of a lane change, else the
     car's lane), ``length``, ``width``, ``type_index``, ``x``, ``y``, ``heading``, ``vx``,
     ``vy``, and ``desired_speed`` (m/s). ``rogue_brake_count`` and ``rogue_cut_in_count``
@@ -379,6 +381,7 @@ class HighwayTraffic:
         self.n = n
         self.sizes_version += 1
         self.ids: IntArray = np.arange(n, dtype=np.int64)
+        self.spawn_count: IntArray = np.zeros(n, dtype=np.int64)
         self.type_index: IntArray = np.zeros(n, dtype=np.int64)
         self.length: FloatArray = zeros.copy()
         self.width: FloatArray = zeros.copy()
@@ -490,7 +493,6 @@ class HighwayTraffic:
         self._tri = np.tri(n, k=-1, dtype=bool)
         self._step = 0
         self._respawn_blocked_until = 0  # after a failed respawn, pause all attempts
-        self._next_id = n
         self._ego = (0.0, 0.0, 0.0)  # s, d, speed at the latest sample
 
     def _ego_occupancy(self, ego_d: float) -> tuple[NDArray[np.bool_], FloatArray]:
@@ -544,7 +546,7 @@ class HighwayTraffic:
 
     def _own_arrays(self) -> None:
         """Copy the per-car arrays a respawn writes into (they may be views of samples)."""
-        for name in ("ids", "s", "d", "speed", "type_index", "length", "width",
+        for name in ("spawn_count", "s", "d", "speed", "type_index", "length", "width",
                      "desired_speed", "target_lane"):
             setattr(self, name, getattr(self, name).copy())
 
@@ -1018,8 +1020,7 @@ class HighwayTraffic:
             offsets = np.concatenate((spots_ahead, spots_behind) if ahead
                                      else (spots_behind, spots_ahead))
             if self._place(int(i), placed, rng, offsets):
-                self.ids[i] = self._next_id
-                self._next_id += 1
+                self.spawn_count[i] += 1  # the slot keeps its id, as the original's cars
                 moved = True
             else:  # no room (dense traffic): the car drives on; retry in a while
                 self._respawn_wait[i] = self._step + _RESPAWN_RETRY_STEPS

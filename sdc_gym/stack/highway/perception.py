@@ -131,9 +131,10 @@ class Perception:
     ``[0, length)`` after every step, so a car crossing the seam keeps its track. A track
     starts on the first sighting of an id, is predicted every cycle by the time elapsed
     since the last one, is updated when its id is sensed (a dropout is predict-only), is
-    restarted when a sighting lands more than ``track_gate`` from it, and is dropped when
-    its id has not been sensed for ``track_timeout`` seconds (the env gives a recycled car
-    a new id). A ``time`` earlier than the previous call's starts afresh (a new episode).
+    restarted when a sighting lands more than ``track_gate`` from it (a recycled car keeps
+    its slot's id, as in the original, and reappears far from where it left), and is
+    dropped when its id has not been sensed for ``track_timeout`` seconds. A ``time``
+    earlier than the previous call's starts afresh (a new episode).
     The world model then holds every live track, sensed this cycle or not.
 
     Lane views use centre-to-centre gaps within ``sensing_range``; ``cars`` lists every
