@@ -32,6 +32,10 @@ from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from sdc_gym.geometry.exact_math import power
+from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
+from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
+from sdc_gym.geometry.projection_kernel import NEWTON_TOLERANCE_M as _NEWTON_TOLERANCE_M
+from sdc_gym.geometry.projection_kernel import LineGeometry, project_points
 
 FloatArray = NDArray[np.float64]
 
@@ -41,10 +45,7 @@ _GL_NODES = 0.5 * (_GL_NODES + 1.0)
 _GL_WEIGHTS = 0.5 * _GL_WEIGHTS
 
 # Newton iterations used by projections (at most; they stop at convergence, 2-3 from a
-# guess within a metre), and the largest step one may take.
-_NEWTON_ITERATIONS = 6
-_MAX_NEWTON_STEP_M = 50.0
-_NEWTON_TOLERANCE_M = 1e-6
+# guess within a metre), the largest step one may take and the tolerance: the kernels'.
 # Batches up to this many points are projected in plain Python (see ReferenceLine._newton).
 _SCALAR_BATCH_LIMIT = 12
 # A local (warm-started) projection that lands further than this from the point, or moves
@@ -143,6 +144,10 @@ class ReferenceLine:
         xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
         self._coef_xy = np.ascontiguousarray(xy_rows)
         self._total_param = coarse_length
+        self._geometry = LineGeometry(self._coef_xy, float(self._knot_step),
+                                      float(self._inverse_step), int(self._segments - 1),
+                                      float(self._total_param), float(self._param_scale),
+                                      float(self.length))
 
     # ------------------------------------------------------------------ evaluation
     def _param(self, s: ArrayLike) -> FloatArray:
@@ -361,6 +366,11 @@ class ReferenceLine:
         s, d = self.project(xy[:, 0], xy[:, 1], s_guesses)
         return s.tolist(), d.tolist()
 
+    def geometry(self) -> LineGeometry:
+        """The line as the projection kernels take it (see
+        :mod:`~sdc_gym.geometry.projection_kernel`)."""
+        return self._geometry
+
     def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray
                        ) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Newton projections of points from their guessed s: (s, d, how far s moved).
@@ -369,43 +379,15 @@ class ReferenceLine:
         ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``): a complex
         times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``. The
         closing evaluation takes d from the right normal ``1j * conj(velocity)`` and
-        ``abs(velocity)`` (``hypot``), as complex arithmetic does.
+        ``abs(velocity)`` (``hypot``), as complex arithmetic does. Compiled per point
+        (:func:`~sdc_gym.geometry.projection_kernel.project_points`).
         """
-        rows, step_u, inverse = self._coef_xy, self._knot_step, self._inverse_step
-        last, total, scale = self._segments - 1, self._total_param, self._param_scale
-        u0 = np.remainder(s0, self.length) * scale
-        u = u0.copy()
-        active = np.ones(u.shape, dtype=bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for _ in range(_NEWTON_ITERATIONS):
-                i = (u * inverse).astype(np.intp)
-                np.minimum(i, last, out=i)
-                ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = np.moveaxis(
-                    rows[i], -1, 0)
-                t = u - i * step_u
-                offset_x = ((ax * t + bx) * t + cx) * t + dx - x
-                offset_y = ((ay * t + by) * t + cy) * t + dy - y
-                velocity_x = (a3x * t + b2x) * t + cx
-                velocity_y = (a3y * t + b2y) * t + cy
-                f = offset_x * velocity_x + offset_y * velocity_y
-                fp = (velocity_x * velocity_x + velocity_y * velocity_y) + (
-                    offset_x * (a6x * t + b2x) + offset_y * (a6y * t + b2y))
-                step = f / fp
-                np.minimum(step, _MAX_NEWTON_STEP_M, out=step)
-                np.maximum(step, -_MAX_NEWTON_STEP_M, out=step)
-                np.copyto(u, np.remainder(u - step, total), where=active)
-                active &= ~((step > -_NEWTON_TOLERANCE_M) & (step < _NEWTON_TOLERANCE_M))
-                if not np.count_nonzero(active):
-                    break
-        i = (u * inverse).astype(np.intp)
-        np.minimum(i, last, out=i)
-        ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, _, _ = np.moveaxis(rows[i], -1, 0)
-        t = u - i * step_u
-        velocity_x = (a3x * t + b2x) * t + cx
-        velocity_y = (a3y * t + b2y) * t + cy
-        point_x = ((ax * t + bx) * t + cx) * t + dx
-        point_y = ((ay * t + by) * t + cy) * t + dy
-        d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / np.hypot(velocity_x,
-                                                                              velocity_y)
-        moved = (np.remainder(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
-        return u / scale, d, moved
+        x, y, s0 = np.broadcast_arrays(np.asarray(x, dtype=np.float64),
+                                       np.asarray(y, dtype=np.float64),
+                                       np.asarray(s0, dtype=np.float64))
+        shape = x.shape
+        s, d, moved = np.empty(shape), np.empty(shape), np.empty(shape)
+        project_points(self._geometry, np.ascontiguousarray(x).reshape(-1),
+                       np.ascontiguousarray(y).reshape(-1), np.ascontiguousarray(s0).reshape(-1),
+                       s.reshape(-1), d.reshape(-1), moved.reshape(-1))
+        return s, d, moved

@@ -1,0 +1,91 @@
+"""Newton projections onto a reference line's spline, compiled (numba) per point.
+
+:meth:`ReferenceLine._newton_arrays <sdc_gym.geometry.reference_line.ReferenceLine>` runs
+:func:`project_points` over arrays of points, and the track world's frame kernel calls
+:func:`project_point` for every env's car: one implementation. Each point iterates
+Newton on ``f(u) = (r(u) - p) . r'(u)`` from its guess until its own step is below
+:data:`NEWTON_TOLERANCE_M` (at most :data:`NEWTON_ITERATIONS`), on the spline's
+coefficients as floats, with exactly the operations (and their order) of the array code
+it replaced, so the results are the same to the last bit.
+
+A line is handed to the kernels as a :class:`LineGeometry` tuple (built once by
+:meth:`ReferenceLine.geometry`).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+NEWTON_ITERATIONS = 6
+"""Newton iterations at most (2-3 from a guess within a metre)."""
+MAX_NEWTON_STEP_M = 50.0
+"""The largest step one iteration may take."""
+NEWTON_TOLERANCE_M = 1e-6
+"""A point stops iterating after a step under this (its error is then ~1e-12 m)."""
+
+
+class LineGeometry(NamedTuple):
+    """What the kernels need of a reference line (see ``ReferenceLine.__init__``)."""
+
+    coef_xy: NDArray[np.float64]  # (segments, 14): a.x, a.y, b.x, ..., 6a.x, 6a.y per segment
+    knot_step: float  # parameter length of a segment
+    inverse_step: float
+    last_segment: int
+    total_param: float  # parameter length of the loop
+    param_scale: float  # parameter per metre of arc length
+    length: float  # loop length, m
+
+
+@njit(cache=True)
+def project_point(line: LineGeometry, x: float, y: float, s0: float
+                  ) -> tuple[float, float, float]:
+    """(s, d, how far s moved from ``s0``) of the point ``(x, y)``, Newton from ``s0``."""
+    rows = line.coef_xy
+    step_u, inverse, last = line.knot_step, line.inverse_step, line.last_segment
+    total, scale = line.total_param, line.param_scale
+    u0 = (s0 % line.length) * scale
+    u = u0
+    for _ in range(NEWTON_ITERATIONS):
+        i = min(int(u * inverse), last)
+        c = rows[i]
+        t = u - i * step_u
+        offset_x = ((c[0] * t + c[2]) * t + c[4]) * t + c[6] - x
+        offset_y = ((c[1] * t + c[3]) * t + c[5]) * t + c[7] - y
+        velocity_x = (c[8] * t + c[10]) * t + c[4]
+        velocity_y = (c[9] * t + c[11]) * t + c[5]
+        f = offset_x * velocity_x + offset_y * velocity_y
+        fp = (velocity_x * velocity_x + velocity_y * velocity_y) + (
+            offset_x * (c[12] * t + c[10]) + offset_y * (c[13] * t + c[11]))
+        step = f / fp
+        if step > MAX_NEWTON_STEP_M:  # NaN passes through, as np.minimum lets it
+            step = MAX_NEWTON_STEP_M
+        if step < -MAX_NEWTON_STEP_M:
+            step = -MAX_NEWTON_STEP_M
+        u = (u - step) % total
+        if -NEWTON_TOLERANCE_M < step < NEWTON_TOLERANCE_M:
+            break
+    i = min(int(u * inverse), last)
+    c = rows[i]
+    t = u - i * step_u
+    velocity_x = (c[8] * t + c[10]) * t + c[4]
+    velocity_y = (c[9] * t + c[11]) * t + c[5]
+    point_x = ((c[0] * t + c[2]) * t + c[4]) * t + c[6]
+    point_y = ((c[1] * t + c[3]) * t + c[5]) * t + c[7]
+    d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / math.hypot(velocity_x,
+                                                                             velocity_y)
+    moved = (((u - u0 + 0.5 * total) % total) - 0.5 * total) / scale
+    return u / scale, d, moved
+
+
+@njit(cache=True)
+def project_points(line: LineGeometry, x: NDArray[np.float64], y: NDArray[np.float64],
+                   s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
+                   moved: NDArray[np.float64]) -> None:
+    """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``."""
+    for k in range(x.size):
+        s[k], d[k], moved[k] = project_point(line, x[k], y[k], s0[k])
