@@ -109,3 +109,15 @@ def py_max(a: float, b: float) -> float:
 def py_min(a: float, b: float) -> float:
     """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
     return b if b < a else a
+
+
+@njit(cache=True)
+def np_maximum(a: float, b: float) -> float:
+    """``np.maximum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
+    return a if (a >= b or a != a) else b
+
+
+@njit(cache=True)
+def np_minimum(a: float, b: float) -> float:
+    """``np.minimum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
+    return a if (a <= b or a != a) else b
