@@ -459,3 +459,55 @@ class TrackSetup:
                     f"left out unless manual.mode is 'random' (it is {mode!r}, which would "
                     f"ignore it)", pair)
 
+
+    # ------------------------------------------------------------------ per episode
+    def manual_schedule(self, rng: np.random.Generator) -> list[tuple[int, int]]:
+        """An episode's manual periods as [start, end) physics frames (random ones drawn
+        from ``rng``)."""
+        manual = self.config["manual"]
+        if manual["mode"] == "scripted":
+            return [(frames_of(start), frames_of(end)) for start, end in manual["periods"]]
+        if manual["mode"] == "off":
+            return []
+        periods = []
+        time_s = float(rng.uniform(*manual["interval_s"]))
+        while time_s < self.config["max_duration"]:
+            end_s = time_s + float(rng.uniform(*manual["duration_s"]))
+            periods.append((frames_of(time_s), frames_of(end_s)))
+            time_s = end_s + float(rng.uniform(*manual["interval_s"]))
+        return periods
+
+    # ------------------------------------------------------------------ actions
+    def read_action(self, action: Any) -> tuple[float, float, float]:
+        """The action as three Python floats, or a ValueError naming the bad component."""
+        if isinstance(action, np.ndarray) and action.shape == (3,) and action.dtype.kind == "f":
+            values = action.tolist()
+        else:
+            try:
+                array = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError) as error:
+                raise ValueError(f"action must be 3 numbers [throttle, brake_torque, "
+                                 f"steering_wheel_angle]: {error}") from None
+            if array.shape != (3,):
+                raise ValueError(f"action must have shape (3,): [throttle, brake_torque, "
+                                 f"steering_wheel_angle], got shape {array.shape}")
+            values = array.tolist()
+        throttle, brake, steering = values
+        # One chained test for the common case; NaN fails every comparison.
+        max_steer = self.max_steering_angle
+        if not (0.0 <= throttle <= 1.0 and 0.0 <= brake <= self.max_brake_torque
+                and -max_steer <= steering <= max_steer):
+            self.raise_bad_action(values)
+        return throttle, brake, steering
+
+    def raise_bad_action(self, values: list[float]) -> None:
+        """The ValueError for an action outside the box, naming the first bad component."""
+        ranges = (("throttle", 0.0, 1.0, ""),
+                  ("brake_torque", 0.0, self.max_brake_torque, " N m"),
+                  ("steering_wheel_angle", -self.max_steering_angle, self.max_steering_angle,
+                   " rad"))
+        for index, ((name, low, high, unit), value) in enumerate(zip(ranges, values,
+                                                                     strict=True)):
+            if not low <= value <= high:
+                raise ValueError(f"action[{index}] {name} = {value!r} is outside its valid "
+                                 f"range [{low:g}, {high:g}]{unit} (NaN is never valid)")

@@ -95,11 +95,24 @@ class TrackMetrics:
     """
 
     def __init__(self, track: TrackMap, rules: IncidentRules, front_offset_m: float) -> None:
-        self.batch = TrackMetricsBatch(track, rules, front_offset_m, envs=1)
-        self.track = track
-        self.front_offset_m = self.batch.front_offset_m
-        self.driving = DrivingMetrics.view(self.batch.driving, 0)
+        self._attach(TrackMetricsBatch(track, rules, front_offset_m, envs=1), 0)
         self._ready = False
+
+    @classmethod
+    def view(cls, batch: TrackMetricsBatch, env: int) -> TrackMetrics:
+        """Env ``env`` of an existing batch, with this class's API (read it; the batch
+        records)."""
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        made._ready = True
+        return made
+
+    def _attach(self, batch: TrackMetricsBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.track = batch.track
+        self.front_offset_m = batch.front_offset_m
+        self.driving = DrivingMetrics.view(batch.driving, env)
 
     # ------------------------------------------------------------------ episode control
     def reset(self, x: float, y: float, s: float, d: float, speed: float = 0.0) -> None:
@@ -129,6 +142,8 @@ class TrackMetrics:
         if not self._ready:
             raise RuntimeError("call reset() before record()")
         batch = self.batch
+        if batch.envs != 1:
+            raise RuntimeError("record() of one env of a batch: record the batch")
         lights = len(batch.lines.line_order)
         if lights and light_states is None:
             raise ValueError("TrackMetrics.record: the track has stop lines, so light_states "
@@ -156,36 +171,36 @@ class TrackMetrics:
     def next_stop_line(self) -> tuple[int, float]:
         """(index, m from the front bumper along the path) of the next stop line the front
         bumper will cross; ``(-1, inf)`` on a track without lines."""
-        return self.batch.next_stop_line(0)
+        return self.batch.next_stop_line(self.env)
 
     @property
     def red_light_violations(self) -> int:
-        return self.batch.red_light_violations(0)
+        return self.batch.red_light_violations(self.env)
 
     @property
     def stops(self) -> list[StopRecord]:
         """Stops at stop lines so far, the current one (if stopped) included."""
-        return self.batch.stops(0)
+        return self.batch.stops(self.env)
 
     @property
     def rms_cross_track_error(self) -> float:
         """m, root mean square of ``d`` over the recorded steps (0 before any)."""
-        return self.batch.rms_cross_track_error(0)
+        return self.batch.rms_cross_track_error(self.env)
 
     @property
     def max_cross_track_error(self) -> float:
         """m, largest ``|d|`` so far."""
-        return float(self.batch.state.max_abs_d[0])
+        return float(self.batch.state.max_abs_d[self.env])
 
     @property
     def max_lateral_acceleration(self) -> float:
         """m/s^2, largest ``|a_lat|`` so far."""
-        return float(self.batch.state.max_lat[0])
+        return float(self.batch.state.max_lat[self.env])
 
     def step_info(self) -> dict[str, Any]:
         """The driving metrics' step info plus the latest cross-track error and lateral
         acceleration; the same keys every call."""
-        return self.batch.step_info(0)
+        return self.batch.step_info(self.env)
 
     def summary(self) -> dict[str, Any]:
         """The driving metrics' summary plus (plain Python, JSON-ready):
@@ -195,4 +210,4 @@ class TrackMetrics:
         ``max_overshoot`` (m, 0 without a stop past a line); ``max_cross_track_error``,
         ``rms_cross_track_error`` (m); ``max_lateral_acceleration`` (m/s^2).
         """
-        return self.batch.summary(0)
+        return self.batch.summary(self.env)
