@@ -230,8 +230,23 @@ class TrackLoopEnv(TopDownRenderEnv):
 
     def __init__(self, config: dict[str, Any] | None = None,
                  render_mode: str | None = None) -> None:
-        self.world = TrackWorld(config, envs=1)
-        setup = self.world.setup
+        self._attach(TrackWorld(config, envs=1), render_mode)
+
+    @classmethod
+    def over(cls, world: TrackWorld, render_mode: str | None = None) -> TrackLoopEnv:
+        """The ``TrackLoop-v0`` view of env 0 of an existing one-env world (e.g. the
+        behavior env's): its attributes, ``summary()`` and ``render()``; the world's owner
+        resets and steps it."""
+        made = object.__new__(cls)
+        made._attach(world, render_mode)
+        made._state_ready = True
+        return made
+
+    def _attach(self, world: TrackWorld, render_mode: str | None) -> None:
+        if world.envs != 1:
+            raise ValueError(f"TrackLoopEnv is one env; the world has {world.envs}")
+        self.world = world
+        setup = world.setup
         self.config = setup.config
         self._init_render_mode(render_mode)
         for name in _SETUP_ATTRIBUTES:
@@ -317,7 +332,7 @@ class TrackLoopEnv(TopDownRenderEnv):
             **self._renderer_options())
 
     def _render_scene(self) -> TrackScene:
-        if not self._state_ready:
+        if not self.world.ready[0]:
             raise RuntimeError("call reset() before render()")
         from sdc_gym.render.track_renderer import TrackScene
 

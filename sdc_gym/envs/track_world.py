@@ -112,7 +112,7 @@ class TrackWorld:
         self.obstacles_heading = [np.zeros(0)] * envs
         self.done_reason = [""] * envs
         self._frozen: list[dict[str, Any] | None] = [None] * envs
-        self._ready = np.zeros(envs, dtype=bool)
+        self.ready = np.zeros(envs, dtype=bool)
         self._steps_capacity = 0
         self.buffers: FrameBuffers = frame_buffers(envs, 0)
         self.outputs: StepOutputs = step_outputs(envs, 0)
@@ -156,7 +156,7 @@ class TrackWorld:
         self.done_reason[env] = ""
         self._frozen[env] = None
         update_stop_line(self.constants, st, env)
-        self._ready[env] = True
+        self.ready[env] = True
 
     def _set_manual_schedule(self, env: int, periods: list[tuple[int, int]]) -> None:
         st = self.state
@@ -203,7 +203,7 @@ class TrackWorld:
         """Run ``kernel`` (a call of a frame kernel over this world's state, returning
         whether some env paused) until no env is paused, serving the pauses; then the
         driving metrics of the call's frames. Returns each env's new incidents."""
-        if not self._ready.all():
+        if not self.ready.all():
             raise RuntimeError("call reset() before step()")
         self._capacity(steps)
         self._frozen = [None] * self.envs
