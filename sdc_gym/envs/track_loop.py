@@ -9,7 +9,6 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.envs.top_down_env import TopDownRenderEnv
-from sdc_gym.envs.track_kernel import run_steps
 from sdc_gym.envs.track_setup import TRACK_DEFAULTS, top_speed
 from sdc_gym.envs.track_world import TrackWorld
 from sdc_gym.metrics.track_metrics import TrackMetrics
@@ -254,7 +253,7 @@ class TrackLoopEnv(TopDownRenderEnv):
         self._set_render_fps(PHYSICS_DT * self.steps_per_action)
         self.action_space = setup.action_space
         self.observation_space = setup.observation_space
-        self._steps_left = np.zeros(1, dtype=np.int64)
+        self._active = np.ones(1, dtype=bool)
         self._debug_path: NDArray[np.float64] = np.zeros((0, 2))
         self._state_ready = False
 
@@ -286,21 +285,15 @@ class TrackLoopEnv(TopDownRenderEnv):
         if not self._state_ready:
             raise RuntimeError("call reset() before step()")
         world = self.world
-        world.state.command[0] = self.world.setup.read_action(action)
-        self._steps_left[0] = 1
-        new = world.advance(1, self._run)[0]
-        reward = world.rewards(0, new)[0]
+        world.state.command[0] = world.setup.read_action(action)
+        rewards, incidents = world.step(self._active)
+        new, reward = incidents[0], rewards[0]
         terminated = bool(world.state.terminated[0])
         truncated = bool(world.state.truncated[0])
         if self.render_mode == "human":
             self.render()
         info = world.info(0, new, final=terminated or truncated)
         return world.observation(0), float(reward), terminated, truncated, info
-
-    def _run(self) -> bool:
-        world = self.world
-        return run_steps(world.constants, world.state, world.buffers, world.outputs,
-                         world.events, self._steps_left)
 
     def summary(self) -> dict[str, Any]:
         """The episode's summary so far, as ``info["summary"]`` holds it at the end (an

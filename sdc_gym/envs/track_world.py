@@ -38,6 +38,7 @@ from sdc_gym.envs.track_kernel import (
     TrackConstants,
     frame_buffers,
     manual_at,
+    run_steps,
     step_outputs,
     track_state,
     update_stop_line,
@@ -117,6 +118,7 @@ class TrackWorld:
         self.buffers: FrameBuffers = frame_buffers(envs, 0)
         self.outputs: StepOutputs = step_outputs(envs, 0)
         self.events = stop_line_events(0)
+        self._steps_left = np.zeros(envs, dtype=np.int64)
 
     # ------------------------------------------------------------------ episodes
     def reset_at(self, env: int, rng: np.random.Generator) -> None:
@@ -198,6 +200,21 @@ class TrackWorld:
             lights = max(self.track.light_count, 1)
             self.events = stop_line_events(self.envs * frames * lights)
             self._steps_capacity = steps
+
+    def step(self, active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], list[Any]]:
+        """One env step of the ``active`` envs, each with its commands
+        (``state.command``, checked by :meth:`TrackSetup.read_action`): each env's reward
+        (0 for the others) and the incidents that began in the step."""
+        self._steps_left[:] = active
+        incidents = self.advance(1, self._run_steps)
+        reward = np.zeros(self.envs)
+        for env in np.flatnonzero(active).tolist():
+            reward[env] = self.rewards(env, incidents[env])[0]
+        return reward, incidents
+
+    def _run_steps(self) -> bool:
+        return run_steps(self.constants, self.state, self.buffers, self.outputs, self.events,
+                         self._steps_left)
 
     def advance(self, steps: int, kernel: Callable[[], bool]) -> list[Any]:
         """Run ``kernel`` (a call of a frame kernel over this world's state, returning
@@ -373,25 +390,37 @@ class TrackWorld:
 
     def observation(self, env: int) -> dict[str, Any]:
         """Env ``env``'s ``TrackLoop-v0`` observation (new arrays)."""
+        batch = self.observations(np.array([env]))
+        observation = {key: value[0] for key, value in batch.items()}
+        observation["dbw_enabled"] = int(observation["dbw_enabled"])
+        return observation
+
+    def observations(self, rows: NDArray[np.int64] | None = None) -> dict[str, Any]:
+        """The ``TrackLoop-v0`` observations of envs ``rows`` (default: all), each key's
+        values stacked along a leading axis (new arrays)."""
         st, setup = self.state, self.setup
-        car = st.vehicle[env].tolist()
-        values = np.array((car[X], car[Y], car[YAW], car[SPEED], car[YAW_RATE], st.next_line[env],
-                           st.line_distance[env]), dtype=np.float32)
+        rows = np.arange(self.envs) if rows is None else rows
+        car = st.vehicle[rows]
+        values = np.column_stack((car[:, X], car[:, Y], car[:, YAW], car[:, SPEED],
+                                  car[:, YAW_RATE], st.next_line[rows],
+                                  st.line_distance[rows])).astype(np.float32)
         observation: dict[str, Any] = {
-            "pose": values[0:3],
-            "velocity": values[3:4],
-            "yaw_rate": values[4:5],
-            "dbw_enabled": int(st.dbw_enabled[env]),
-            "next_stop_line": values[5:7],
+            "pose": values[:, 0:3],
+            "velocity": values[:, 3:4],
+            "yaw_rate": values[:, 4:5],
+            "dbw_enabled": st.dbw_enabled[rows].astype(np.int64),
+            "next_stop_line": values[:, 5:7],
         }
         if self.config["observe_light_states"]:
-            observation["light_states"] = st.light_states[env].copy()
+            observation["light_states"] = st.light_states[rows].copy()
         if setup.camera is not None:
-            observation["camera"] = setup.camera.render(
-                car[X], car[Y], car[YAW], self.track.light_positions, self.track.light_yaw,
-                st.light_states[env], self.camera_rngs[env])
+            observation["camera"] = np.stack([setup.camera.render(
+                float(st.vehicle[env, X]), float(st.vehicle[env, Y]),
+                float(st.vehicle[env, YAW]), self.track.light_positions,
+                self.track.light_yaw, st.light_states[env], self.camera_rngs[env])
+                for env in rows.tolist()])
         if setup.obstacle_count:
-            observation["obstacles"] = st.obstacles[env].astype(np.float32)
+            observation["obstacles"] = st.obstacles[rows].astype(np.float32)
         return observation
 
     def info(self, env: int, incidents: Any, *, final: bool) -> dict[str, Any]:

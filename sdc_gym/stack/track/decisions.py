@@ -66,6 +66,8 @@ def action_values(action: Any, continuous: bool) -> tuple[int, float, float]:
         return 0, float(values[0]), float(values[1])
     if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
         action = action.reshape(()).item()
+    elif isinstance(action, np.generic):
+        action = action.item()  # a numpy scalar (e.g. a vector env's row) as Python's
     if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)) \
             or not 0 <= action < len(TRACK_ACTION_NAMES):
         raise ValueError(f"track action {action!r} invalid; valid: 0..3 = "
