@@ -48,15 +48,20 @@ PR_SET_CHILD_SUBREAPER: Final = 36  # <linux/prctl.h>
 SWEEP_ROUNDS: Final = 50  # SIGKILL rounds for a tree that keeps forking while it is ended
 
 
-def become_subreaper() -> bool:
-    """Make orphaned descendants ours instead of init's (Linux); whether it worked."""
+def prctl(option: int, value: int) -> bool:
+    """Linux's ``prctl(option, value)`` through libc; whether it worked (False elsewhere)."""
     if not sys.platform.startswith("linux"):
         return False
     try:
         libc = ctypes.CDLL(None, use_errno=True)
-        return libc.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0) == 0
+        return libc.prctl(option, value, 0, 0, 0) == 0
     except (OSError, AttributeError):
         return False
+
+
+def become_subreaper() -> bool:
+    """Make orphaned descendants ours instead of init's (Linux); whether it worked."""
+    return prctl(PR_SET_CHILD_SUBREAPER, 1)
 
 
 def descendants(root: int) -> list[int]:
