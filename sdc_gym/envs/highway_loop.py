@@ -22,6 +22,7 @@ from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, TelemetryMessage
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
 from sdc_gym.units import MPS_TO_MPH
+from sdc_gym.validation.actions import real_array
 
 if TYPE_CHECKING:
     from sdc_gym.render.highway_renderer import HighwayRenderer, HighwayScene
@@ -353,10 +354,8 @@ class HighwayLoopEnv(TopDownRenderEnv):
     # ------------------------------------------------------------------ ego motion
     def _validate_path(self, action: Any) -> NDArray[np.float64]:
         """The action as an (m, 2) float array of real points, or a clear ValueError."""
-        try:
-            points = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"path must be numeric (x, y) points: {error}") from None
+        points = real_array(action, None, "path", f"(x, y) map points, shape (m, 2) with "
+                            f"m <= path_points = {self.path_points}")
         if points.size == 0:
             return self._empty_path
         if points.ndim != 2 or points.shape[1] != 2:

@@ -35,6 +35,7 @@ from sdc_gym.sensors.track_camera import (
     TrackCamera,
 )
 from sdc_gym.units import MPS_TO_MPH
+from sdc_gym.validation.actions import real_array
 from sdc_gym.vehicle.dbw_vehicle import (
     PHYSICS_DT,
     VEHICLE_PRESETS,
@@ -731,15 +732,8 @@ class TrackLoopEnv(TopDownRenderEnv):
         if isinstance(action, np.ndarray) and action.shape == (3,) and action.dtype.kind == "f":
             values = action.tolist()
         else:
-            try:
-                array = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError) as error:
-                raise ValueError(f"action must be 3 numbers [throttle, brake_torque, "
-                                 f"steering_wheel_angle]: {error}") from None
-            if array.shape != (3,):
-                raise ValueError(f"action must have shape (3,): [throttle, brake_torque, "
-                                 f"steering_wheel_angle], got shape {array.shape}")
-            values = array.tolist()
+            values = real_array(action, (3,), "action", "[throttle, brake_torque, "
+                                "steering_wheel_angle]").tolist()
         throttle, brake, steering = values
         # One chained test for the common case; NaN fails every comparison.
         max_steer = self.max_steering_angle
