@@ -18,7 +18,7 @@ from sdc_gym.geometry.collision import contact_reach_sq, first_contact
 from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, DrivingMetrics, Incident, IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
-from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.road.highway_map import HighwayMap, MapFormatError
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, TelemetryMessage
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
 from sdc_gym.units import MPS_TO_MPH
@@ -217,7 +217,10 @@ class HighwayLoopEnv(TopDownRenderEnv):
         require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
                 f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
 
-        self.road: HighwayMap = get_highway_map(cfg["map"])
+        try:
+            self.road: HighwayMap = get_highway_map(cfg["map"])
+        except MapFormatError as error:
+            raise ConfigError(f"{owner}: config key 'map': {error}") from None
         traffic_cfg = dict(cfg["traffic"])
         traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
         traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])
