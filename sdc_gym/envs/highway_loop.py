@@ -23,6 +23,7 @@ from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig, Teleme
 from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic, IDMParameters, TrafficConfig
 from sdc_gym.units import MPS_TO_MPH
 from sdc_gym.validation.actions import real_array
+from sdc_gym.validation.env_configs import check_highway_config, check_highway_start
 
 if TYPE_CHECKING:
     from sdc_gym.render.highway_renderer import HighwayRenderer, HighwayScene
@@ -205,15 +206,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self.config = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
         cfg = self.config
         self._init_render_mode(render_mode)
-        require(cfg["path_points"] >= 2, owner, "path_points", "an int >= 2", cfg["path_points"])
-        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
-                cfg["steps_per_action"])
+        check_highway_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
         if cfg["latency_steps"] is None:
             cfg["latency_steps"] = cfg["steps_per_action"]
-        require(isinstance(cfg["latency_steps"], int) and cfg["latency_steps"] >= 0, owner,
-                "latency_steps", "None or an int >= 0", cfg["latency_steps"])
-        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
-        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
         require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
                 f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
 
@@ -221,6 +216,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
             self.road: HighwayMap = get_highway_map(cfg["map"])
         except MapFormatError as error:
             raise ConfigError(f"{owner}: config key 'map': {error}") from None
+        check_highway_start(cfg, self.road.road_width, owner)
         traffic_cfg = dict(cfg["traffic"])
         traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
         traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])

@@ -36,6 +36,7 @@ from sdc_gym.sensors.track_camera import (
 )
 from sdc_gym.units import MPS_TO_MPH
 from sdc_gym.validation.actions import real_array
+from sdc_gym.validation.env_configs import check_track_config
 from sdc_gym.vehicle.dbw_vehicle import (
     PHYSICS_DT,
     VEHICLE_PRESETS,
@@ -361,10 +362,7 @@ class TrackLoopEnv(TopDownRenderEnv):
         cfg = self.config
         self._init_render_mode(render_mode)
         self._given = dict(config or {})  # the user's own keys, to catch ignored ones
-        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
-                cfg["steps_per_action"])
-        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
-        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        check_track_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
         self._check_optional_keys(owner)
 
         try:

@@ -42,7 +42,9 @@ def is_real(value: Any) -> bool:
 
 def number_text(value: float) -> str:
     """A bound as people write it: ints exactly (``4294967295``), floats short (``0.5``)."""
-    return str(value) if isinstance(value, int) else f"{value:g}"
+    if isinstance(value, int) or (float(value).is_integer() and abs(value) < 1e16):
+        return str(int(value))
+    return f"{value:g}"
 
 
 def _interval(low: float | None, high: float | None, low_open: bool, high_open: bool) -> str:
