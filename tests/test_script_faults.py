@@ -8,6 +8,7 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
 import yaml
 
 from tests.processes import all_gone, descendants
@@ -49,3 +50,34 @@ def test_kill_9_of_evaluate_with_workers_leaves_no_process(tmp_path):
     finally:
         evaluate.kill()
         evaluate.wait()
+
+
+@pytest.mark.parametrize("content, fragment", [
+    (b"\x00\x01binary", "is binary, not text"),
+    ("config: {map: caf\xe9}\n".encode("latin-1"), r"is not UTF-8 text \(byte 0xe9"),
+    (b"config: [unclosed\n", "is not valid YAML"),
+    (b"- a list\n", "expected a mapping"),
+])
+def test_bad_yaml_files_are_clear_errors_in_both_scripts(tmp_path, content, fragment):
+    import evaluate
+    import train
+
+    path = tmp_path / "bad.yaml"
+    path.write_bytes(content)
+    with pytest.raises(SystemExit, match=fragment) as raised:
+        evaluate.main(["--config", str(path), "--output", str(tmp_path / "e")])
+    assert str(path) in str(raised.value)
+    with pytest.raises(SystemExit, match=fragment) as raised:
+        train.main(["--config", str(path), "--output", str(tmp_path / "t")])
+    assert str(path) in str(raised.value)
+    assert not (tmp_path / "e").exists() and not (tmp_path / "t").exists()
+
+
+def test_evaluate_names_a_bad_env_config_before_any_worker(tmp_path):
+    import evaluate
+
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump({"config": {"traffic": {"car_count": 10**6}}}))
+    with pytest.raises(SystemExit, match=r"'traffic.car_count' must be an int in \[0, 1000\]"):
+        evaluate.main(["--config", str(path), "--workers", "2", "--output",
+                       str(tmp_path / "run")])
