@@ -14,9 +14,9 @@ moves the ego car along the planner's points:
   that point is removed and the car does not move (it stands where it is, and the
   telemetry's previous path is empty from then on); with none, nothing happens.
 
-The env keeps a path as an array and the index of its first unconsumed point;
-:func:`adopted_start` gives that index for a new path, :func:`frames_of_motion` how many
-of a span of frames move the car.
+The env keeps each path (one per env of a batch) as an array and the index of its first
+unconsumed point; :func:`adopted_start` gives that index for new paths,
+:func:`frames_of_motion` how many of a span of frames move each car.
 """
 
 from __future__ import annotations
@@ -25,20 +25,23 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def adopted_start(path: NDArray[np.float64], car_xy: NDArray[np.float64]) -> int:
-    """Index of the first point of ``path`` (``(m, 2)``, ``m >= 1``) the car will use."""
-    offset = path - car_xy  # squared distances: np.sum(offset**2, axis=1), in cheaper
-    offset *= offset        # calls (the same two-term sums)
-    distance_sq = offset[:, 0] + offset[:, 1]
-    nearest = int(distance_sq.argmin())
-    if nearest > 0 or distance_sq[0] == 0.0:
-        return nearest + 1  # past the last point: the path is empty
-    return 0
+def adopted_start(paths: NDArray[np.float64], lengths: NDArray[np.int64],
+                  car_xy: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Per path (``(paths, points, 2)``, the first ``lengths`` points; ``car_xy``
+    ``(paths, 2)``), the index of the first point the car will use (0 for an empty one)."""
+    offset = paths - car_xy[:, None, :]  # squared distances: np.sum(offset**2, axis=-1),
+    offset *= offset                     # in cheaper calls (the same two-term sums)
+    distance_sq = offset[..., 0] + offset[..., 1]
+    distance_sq[np.arange(paths.shape[1])[None, :] >= lengths[:, None]] = np.inf
+    nearest = distance_sq.argmin(axis=1)
+    past = (nearest > 0) | (distance_sq[:, 0] == 0.0)  # past the last point: empty
+    return np.where(lengths > 0, nearest + past, 0)
 
 
-def frames_of_motion(remaining: int, frames: int) -> tuple[int, bool]:
-    """Of ``frames`` frames with ``remaining`` unconsumed points: how many move the car,
-    and whether the path's last point is discarded (one point left, a frame without
-    motion)."""
-    moves = min(frames, max(remaining - 1, 0))
-    return moves, remaining >= 1 and moves < frames
+def frames_of_motion(remaining: NDArray[np.int64], frames: int
+                     ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
+    """Of ``frames`` frames with ``remaining`` unconsumed points (per path): how many move
+    the car, and whether the path's last point is discarded (one point left, a frame
+    without motion)."""
+    moves = np.minimum(frames, np.maximum(remaining - 1, 0))
+    return moves, (remaining >= 1) & (moves < frames)

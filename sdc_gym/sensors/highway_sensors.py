@@ -70,52 +70,56 @@ class SensorConfig:
 
 
 class HighwaySensors:
-    """Turns the traffic state into sensor fusion rows, applying the configured faults."""
+    """Turns the traffic state of a batch of envs into sensor fusion rows, applying the
+    configured faults (each env's from its own generator)."""
 
-    def __init__(self, config: SensorConfig, car_count: int, loop_length: float) -> None:
+    def __init__(self, config: SensorConfig, car_count: int, loop_length: float,
+                 envs: int = 1) -> None:
         self.config = config
         self.loop_length = loop_length
-        self._zero_frames_left = np.zeros(car_count, dtype=np.int64)
+        self._zero_frames_left = np.zeros((envs, car_count), dtype=np.int64)
         self._perfect = config.is_perfect
         # Without dropouts every row is present: one read-only mask serves every frame.
-        self._all_present = np.ones(car_count, dtype=bool)
+        self._all_present = np.ones((envs, car_count), dtype=bool)
         self._all_present.flags.writeable = False
 
-    def reset(self) -> None:
-        self._zero_frames_left[:] = 0
+    def reset_at(self, env: int) -> None:
+        self._zero_frames_left[env] = 0
 
     def read(
         self, ids: NDArray[np.int64], x: NDArray[np.float64], y: NDArray[np.float64],
         vx: NDArray[np.float64], vy: NDArray[np.float64], s: NDArray[np.float64],
-        d: NDArray[np.float64], rng: np.random.Generator,
+        d: NDArray[np.float64], rngs: list[np.random.Generator],
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """One frame: rows ``[id, x, y, vx, vy, s, d]`` (n, 7) and which rows are present
-        (a read-only array, shared between frames, when the sensor has no dropouts)."""
-        n = len(ids)
-        # The fields as rows, then one transposing copy: a third of np.stack's cost on the
-        # dozen cars of a frame (which is all per-call overhead).
-        fusion = np.array([ids, x, y, vx, vy, s, d], dtype=np.float64).T.copy()
-        present = self._all_present if len(self._all_present) == n else np.ones(n, dtype=bool)
+        """One frame of every env: rows ``[id, x, y, vx, vy, s, d]`` ``(envs, n, 7)`` and
+        which rows are present ``(envs, n)`` (a read-only array, shared between frames,
+        when the sensor has no dropouts)."""
+        fusion = np.stack([ids, x, y, vx, vy, s, d], axis=-1).astype(np.float64)
+        present = self._all_present[: len(ids)]
         if self._perfect:
             return fusion, present
         config = self.config
-        if config.position_noise > 0:
-            fusion[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
-            fusion[:, 5] = np.mod(fusion[:, 5], self.loop_length)
-        if config.velocity_noise > 0:
-            fusion[:, [3, 4]] += rng.normal(0.0, config.velocity_noise, (n, 2))
-        if config.zero_sd_probability > 0:
-            in_zone = s > self.loop_length - config.zero_sd_zone
-            start = in_zone & (self._zero_frames_left == 0) & (
-                rng.random(n) < config.zero_sd_probability)
-            low, high = config.zero_sd_frames
-            self._zero_frames_left[start] = rng.integers(low, high + 1, int(start.sum()))
-            faulty = self._zero_frames_left > 0
-            fusion[faulty, 5:7] = 0.0
-            self._zero_frames_left[faulty] -= 1
-        if config.dropout_probability > 0:
-            present = rng.random(n) >= config.dropout_probability
-            fusion[~present] = 0.0
+        n = ids.shape[1]
+        present = present.copy()
+        for env, rng in enumerate(rngs):
+            row = fusion[env]
+            if config.position_noise > 0:
+                row[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
+                row[:, 5] = np.mod(row[:, 5], self.loop_length)
+            if config.velocity_noise > 0:
+                row[:, [3, 4]] += rng.normal(0.0, config.velocity_noise, (n, 2))
+            if config.zero_sd_probability > 0:
+                left = self._zero_frames_left[env]
+                in_zone = s[env] > self.loop_length - config.zero_sd_zone
+                start = in_zone & (left == 0) & (rng.random(n) < config.zero_sd_probability)
+                low, high = config.zero_sd_frames
+                left[start] = rng.integers(low, high + 1, int(start.sum()))
+                faulty = left > 0
+                row[faulty, 5:7] = 0.0
+                left[faulty] -= 1
+            if config.dropout_probability > 0:
+                present[env] = rng.random(n) >= config.dropout_probability
+                row[~present[env]] = 0.0
         return fusion, present
 
 
