@@ -277,3 +277,80 @@ def test_the_track_refuses_bool_complex_object_and_string_actions(action, fragme
         env.step(action)
     assert fragment in str(raised.value) and pickle.dumps(env) == before
     env.step(np.array([1, 0, 0], dtype=np.int64))  # ints are numbers: accepted
+
+
+# ------------------------------------------------------------------------ native batches
+VECTOR_IDS = ["sdc_gym/HighwayLoop-v0", "sdc_gym/HighwayLoopBehavior-v0"]
+
+
+@pytest.mark.parametrize("env_id", VECTOR_IDS)
+def test_generated_configs_to_the_native_batch_are_a_clear_error_or_a_valid_batch(env_id):
+    """``gym.make_vec`` goes through the same validation as ``gym.make``."""
+    @FUZZ
+    @given(extra=overrides(ENVS[env_id].DEFAULT_CONFIG))
+    def check(extra: dict[str, Any]) -> None:
+        try:
+            envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                                config=merged(BASE[env_id], extra))
+        except ConfigError:
+            return
+        except ValueError as error:
+            assert str(error)
+            return
+        try:
+            envs.reset(seed=0)
+            for _ in range(STEPS):
+                action = envs.action_space.sample()
+                if env_id == "sdc_gym/HighwayLoop-v0":  # every env parks on its spot
+                    action[:] = envs.unwrapped.world.ego.xy[:, None, :]
+                _, reward, _, _, _ = envs.step(action)
+                assert np.isfinite(reward).all()
+        except ValueError as error:
+            assert "car_count" in str(error) or "spawn" in str(error), error
+        finally:
+            envs.close()
+
+    check()
+
+
+@pytest.mark.parametrize("action_type", ["discrete", "continuous"])
+def test_generated_batch_actions_step_or_leave_the_batch_bit_identical(action_type):
+    envs = gym.make_vec("sdc_gym/HighwayLoopBehavior-v0", num_envs=2,
+                        vectorization_mode="vector_entry_point",
+                        config={**BASE["sdc_gym/HighwayLoopBehavior-v0"],
+                                "action": action_type})
+    envs.reset(seed=0)
+    expected_shape = (2,) if action_type == "discrete" else (2, 2)
+
+    @FUZZ
+    @given(action=actions())
+    def check(action: Any) -> None:
+        before = pickle.dumps(envs.unwrapped.batch)
+        try:
+            envs.step(action)
+        except ValueError as error:
+            assert str(error)
+            assert pickle.dumps(envs.unwrapped.batch) == before, \
+                f"{action!r} was refused but changed the batch"
+            return
+        accepted = np.asarray(action)
+        assert accepted.shape == expected_shape and accepted.dtype.kind in (
+            "iu" if action_type == "discrete" else "iuf"), f"{action!r} was accepted"
+
+    check()
+    envs.close()
+
+
+def test_the_path_batch_refuses_bool_and_complex_paths_naming_shape_and_dtype():
+    envs = gym.make_vec("sdc_gym/HighwayLoop-v0", num_envs=2,
+                        vectorization_mode="vector_entry_point",
+                        config=BASE["sdc_gym/HighwayLoop-v0"])
+    envs.reset(seed=0)
+    parked = np.repeat(envs.unwrapped.world.ego.xy[:, None, :], 50, axis=1)
+    before = pickle.dumps(envs.unwrapped.world)
+    for bad in (parked.astype(bool), parked.astype(complex), parked[:, :10]):
+        with pytest.raises(ValueError, match=r"actions must be an array of shape \(2, 50, 2\)"):
+            envs.step(bad)
+    assert pickle.dumps(envs.unwrapped.world) == before
+    envs.step(parked)  # real numbers of the right shape: accepted
+    envs.close()

@@ -66,3 +66,28 @@ def discrete_index(action: Any, count: int, names: tuple[str, ...] | list[str] =
     if not 0 <= value < count:
         raise ValueError(f"action {value} out of range; valid: {valid}")
     return int(value)
+
+
+def discrete_indices(actions: Any, envs: int, names: tuple[str, ...] | list[str]) -> NDArray[
+        np.int64]:
+    """A batch's ``Discrete(len(names))`` actions: an int array (or list of ints) of shape
+    ``(envs,)`` with every value in range, as int64; bools, floats and other shapes are
+    refused naming the expected shape and dtype."""
+    count = len(names)
+    array = actions if isinstance(actions, np.ndarray) else None
+    if array is None and not isinstance(actions, str | bytes):
+        try:
+            array = np.asarray(actions)
+        except (ValueError, TypeError):
+            array = None
+    if array is None or array.dtype.kind not in "iu" or array.shape != (envs,):
+        got = (f"dtype {array.dtype} with shape {array.shape}" if array is not None
+               else repr(actions))
+        raise ValueError(f"actions must be an int array of shape ({envs},): one "
+                         f"Discrete({count}) index per env in 0..{count - 1} = {list(names)};"
+                         f" got {got}")
+    bad = np.flatnonzero((array < 0) | (array >= count))
+    if len(bad):
+        raise ValueError(f"action {int(array[bad[0]])} of env {int(bad[0])} out of range; "
+                         f"valid: 0..{count - 1} = {list(names)}")
+    return array.astype(np.int64, copy=False)
