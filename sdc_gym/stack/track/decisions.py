@@ -46,6 +46,7 @@ from sdc_gym.stack.track.node_kernels import (
 )
 from sdc_gym.stack.track.node_kernels import action_decision as _action_decision
 from sdc_gym.stack.track.node_kernels import state_time as _state_time
+from sdc_gym.validation.actions import discrete_index, real_array
 
 TRACK_ACTION_NAMES = ("go", "go_75", "go_50", "stop")
 LIGHT_ORDER = (RED, YELLOW, GREEN, UNKNOWN)
@@ -58,21 +59,12 @@ def action_values(action: Any, continuous: bool) -> tuple[int, float, float]:
     """A valid action as the kernels take it: (index, speed value, stop value); a
     ``ValueError`` for an invalid one."""
     if continuous:
-        values = np.asarray(action, dtype=np.float64).reshape(-1)
-        if values.shape != (2,) or not np.all(np.isfinite(values)) \
-                or np.any(np.abs(values) > 1.0 + 1e-6):
+        values = real_array(action, (2,), "a continuous track decision", "(speed, stop)")
+        if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1.0 + 1e-6):
             raise ValueError(f"a continuous track decision is 2 finite numbers in [-1, 1] "
                              f"(speed, stop), got {np.asarray(action).tolist()!r}")
         return 0, float(values[0]), float(values[1])
-    if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
-        action = action.reshape(()).item()
-    elif isinstance(action, np.generic):
-        action = action.item()  # a numpy scalar (e.g. a vector env's row) as Python's
-    if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)) \
-            or not 0 <= action < len(TRACK_ACTION_NAMES):
-        raise ValueError(f"track action {action!r} invalid; valid: 0..3 = "
-                         f"{list(TRACK_ACTION_NAMES)}")
-    return int(action), 0.0, 0.0
+    return discrete_index(action, len(TRACK_ACTION_NAMES), TRACK_ACTION_NAMES), 0.0, 0.0
 
 
 def action_decision(action: Any, situation: TrackSituation, continuous: bool
