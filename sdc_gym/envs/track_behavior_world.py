@@ -33,6 +33,7 @@ from sdc_gym.stack.track.decisions import (
     TrackDecisionBehavior,
     TrackFeatures,
     action_values,
+    batch_action_values,
 )
 from sdc_gym.stack.track.detector import GroundTruthLightSource
 from sdc_gym.stack.track.node_kernels import MODE_NAMES
@@ -112,14 +113,24 @@ class TrackBehaviorWorld:
 
     # ------------------------------------------------------------------ stepping
     def set_actions(self, actions: Any, rows: list[int] | NDArray[np.int64]) -> None:
-        """The actions of envs ``rows`` for their next decision, checked (a
-        ``ValueError`` names an invalid one)."""
+        """The actions of envs ``rows`` (one per row) for their next decision, checked
+        (a ``ValueError`` names an invalid one, before any is set)."""
+        values = [action_values(action, self.continuous) for action in actions]
         stack = self.stack
-        for env in rows:
-            index, speed, stop = action_values(actions[env], self.continuous)
+        for env, (index, speed, stop) in zip(rows, values, strict=True):
             stack.action_index[env] = index
             stack.action_speed[env] = speed
             stack.action_stop[env] = stop
+
+    def set_batch_actions(self, actions: Any, active: NDArray[np.bool_]) -> None:
+        """Every env's action (``(envs,)`` ints or ``(envs, 2)`` floats, checked as a
+        whole: :func:`~sdc_gym.stack.track.decisions.batch_action_values`) for the next
+        decision of the ``active`` envs."""
+        index, speed, stop = batch_action_values(actions, self.envs, self.continuous)
+        stack = self.stack
+        stack.action_index[active] = index[active]
+        stack.action_speed[active] = speed[active]
+        stack.action_stop[active] = stop[active]
 
     def step(self, active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], list[Any]]:
         """One decision of the ``active`` envs (their actions set with

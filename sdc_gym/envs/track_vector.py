@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from sdc_gym.envs.highway_vector import _BatchVectorEnv
 from sdc_gym.envs.track_behavior_world import TrackBehaviorWorld
 from sdc_gym.envs.track_world import TrackWorld
+from sdc_gym.validation.actions import real_array
 
 
 class TrackLoopBehaviorVectorEnv(_BatchVectorEnv):
@@ -58,12 +59,8 @@ class TrackLoopBehaviorVectorEnv(_BatchVectorEnv):
         return self.batch.observations[env].copy()
 
     def _step_batch(self, actions: Any) -> tuple[NDArray, NDArray, NDArray, list[Any]]:
-        actions = np.asarray(actions)
-        expected = (self.num_envs, 2) if self.batch.continuous else (self.num_envs,)
-        if actions.shape != expected:
-            raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
         active = ~self._needs_reset  # NEXT_STEP: an env reset by this step does not run
-        self.batch.set_actions(actions, np.flatnonzero(active))
+        self.batch.set_batch_actions(actions, active)  # the whole batch checked first
         reward, incidents = self.batch.step(active)
         state = self.batch.world.state
         return reward, state.terminated & active, state.truncated & active, incidents
@@ -106,13 +103,13 @@ class TrackLoopVectorEnv(_BatchVectorEnv):
 
     def _step_batch(self, actions: Any) -> tuple[NDArray, NDArray, NDArray, list[Any]]:
         world = self.world
-        actions = np.asarray(actions)
-        if actions.shape != (self.num_envs, 3):
-            raise ValueError(f"actions must have shape {(self.num_envs, 3)}, got "
-                             f"{actions.shape}")
+        actions = real_array(actions, (self.num_envs, 3), "actions", "one [throttle, "
+                             "brake_torque, steering_wheel_angle] per env")
         active = ~self._needs_reset  # NEXT_STEP: an env reset by this step does not run
-        for env in np.flatnonzero(active).tolist():
-            world.state.command[env] = world.setup.read_action(actions[env])
+        rows = np.flatnonzero(active).tolist()
+        commands = [world.setup.read_action(actions[env]) for env in rows]  # all checked
+        for env, command in zip(rows, commands, strict=True):
+            world.state.command[env] = command
         reward, incidents = world.step(active)
         state = world.state
         return reward, state.terminated & active, state.truncated & active, incidents

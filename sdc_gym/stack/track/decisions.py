@@ -46,13 +46,13 @@ from sdc_gym.stack.track.node_kernels import (
 )
 from sdc_gym.stack.track.node_kernels import action_decision as _action_decision
 from sdc_gym.stack.track.node_kernels import state_time as _state_time
-from sdc_gym.validation.actions import discrete_index, real_array
+from sdc_gym.validation.actions import discrete_index, discrete_indices, real_array
 
 TRACK_ACTION_NAMES = ("go", "go_75", "go_50", "stop")
 LIGHT_ORDER = (RED, YELLOW, GREEN, UNKNOWN)
 __all__ = ["DISTANCE_SCALE_M", "LIGHT_ORDER", "SPEED_FRACTIONS", "STATE_TIME_SCALE_S",
            "TRACK_ACTION_NAMES", "TrackDecisionBehavior", "TrackFeatures", "action_decision",
-           "action_values"]
+           "action_values", "batch_action_values"]
 
 
 def action_values(action: Any, continuous: bool) -> tuple[int, float, float]:
@@ -66,6 +66,25 @@ def action_values(action: Any, continuous: bool) -> tuple[int, float, float]:
         return 0, float(values[0]), float(values[1])
     return discrete_index(action, len(TRACK_ACTION_NAMES), TRACK_ACTION_NAMES), 0.0, 0.0
 
+
+
+def batch_action_values(actions: Any, envs: int, continuous: bool
+                        ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """A batch's actions as the kernels take them, checked as a whole before any is used:
+    ``(envs,)`` int indices (discrete) or ``(envs, 2)`` real numbers in [-1, 1]
+    (continuous), as (index, speed value, stop value) arrays; a ``ValueError`` names the
+    expected shape and dtype, or the first env whose action is out of range."""
+    zeros = np.zeros(envs)
+    if not continuous:
+        return discrete_indices(actions, envs, TRACK_ACTION_NAMES), zeros, zeros
+    values = real_array(actions, (envs, 2), "actions",
+                        "one (speed, stop) decision in [-1, 1] per env")
+    bad = np.flatnonzero(~(np.abs(values) <= 1.0 + 1e-6).all(axis=1))  # NaN is bad too
+    if len(bad):
+        env = int(bad[0])
+        raise ValueError(f"the continuous track decision of env {env} must be 2 finite "
+                         f"numbers in [-1, 1] (speed, stop), got {values[env].tolist()!r}")
+    return np.zeros(envs, dtype=np.int64), values[:, 0].copy(), values[:, 1].copy()
 
 def action_decision(action: Any, situation: TrackSituation, continuous: bool
                     ) -> TrackBehaviorDecision:
