@@ -12,7 +12,6 @@ end of its episode. Pauses for Python are the frame kernel's (see there).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.envs.track_kernel import (
@@ -24,6 +23,7 @@ from sdc_gym.envs.track_kernel import (
     end_step,
     run_frames,
 )
+from sdc_gym.kernel_compiler import kernel
 from sdc_gym.metrics.track_metrics_batch import StopLineEvents
 from sdc_gym.stack.track.stack_batch import (
     StackConstants,
@@ -37,12 +37,12 @@ from sdc_gym.vehicle.dbw_kernel import SPEED, YAW, X, Y
 DONE, PAUSED, BAD_COMMAND = range(3)
 
 
-@njit(cache=True)
+@kernel
 def _f32(value: float) -> float:
     return np.float64(np.float32(value))  # float() would keep a float32 in numba
 
 
-@njit(cache=True)
+@kernel
 def run_decisions(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out: StepOutputs,
                   events: StopLineEvents, sc: StackConstants, ss: StackState,
                   steps_left: NDArray[np.int64], max_brake: float, max_steer: float,
@@ -82,7 +82,7 @@ def run_decisions(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out:
     return status
 
 
-@njit(cache=True)
+@kernel
 def observe_envs(st: TrackState, sc: StackConstants, ss: StackState, rows: NDArray[np.int64],
                  out: NDArray[np.float32]) -> None:
     """The decision observations of envs ``rows`` into ``out[rows]`` (see

@@ -31,10 +31,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.geometry.projection_kernel import LineGeometry, project_point
+from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.light_kernel import LightSchedule, step_lights
 from sdc_gym.metrics.track_metrics_batch import (
     StopLineEvents,
@@ -192,7 +192,7 @@ def track_state(envs: int, lights: int, obstacles: int, metrics: StopLineState) 
 
 
 # ============================================================================ frames
-@njit(cache=True)
+@kernel
 def manual_at(st: TrackState, env: int, frame: int) -> bool:
     """Whether the frame starting at ``frame`` is in a manual period (the index moves
     forward only)."""
@@ -205,7 +205,7 @@ def manual_at(st: TrackState, env: int, frame: int) -> bool:
     return index < count and periods[index, 0] <= frame
 
 
-@njit(cache=True)
+@kernel
 def update_mode(st: TrackState, env: int) -> None:
     """``dbw_enabled`` for the frame about to run; a take-over when the human starts."""
     manual = manual_at(st, env, st.frame[env])
@@ -214,7 +214,7 @@ def update_mode(st: TrackState, env: int) -> None:
     st.dbw_enabled[env] = not manual
 
 
-@njit(cache=True)
+@kernel
 def update_stop_line(c: TrackConstants, st: TrackState, env: int) -> None:
     """The observation's next stop line ahead of the rear axle (the loop length: none)."""
     line, distance = next_stop_line(c.stop_s, c.stop_index, c.length, st.s[env])
@@ -224,7 +224,7 @@ def update_stop_line(c: TrackConstants, st: TrackState, env: int) -> None:
     st.line_distance[env] = distance
 
 
-@njit(cache=True)
+@kernel
 def _near_obstacle(c: TrackConstants, st: TrackState, env: int) -> bool:
     car = st.vehicle[env]
     cx = car[X] + c.centre_offset * math.cos(car[YAW])
@@ -238,7 +238,7 @@ def _near_obstacle(c: TrackConstants, st: TrackState, env: int) -> bool:
     return False
 
 
-@njit(cache=True)
+@kernel
 def begin_step(st: TrackState, buffers: FrameBuffers, out: StepOutputs, env: int) -> None:
     """Start an env step: the frames' bookkeeping from here on belongs to it."""
     st.contact[env] = -1
@@ -253,7 +253,7 @@ def begin_step(st: TrackState, buffers: FrameBuffers, out: StepOutputs, env: int
     st.in_step[env] = True
 
 
-@njit(cache=True)
+@kernel
 def run_frames(c: TrackConstants, st: TrackState, buffers: FrameBuffers,
                events: StopLineEvents, env: int) -> bool:
     """The frames of env ``env``'s current step, from where it stands; True when it paused
@@ -316,7 +316,7 @@ def run_frames(c: TrackConstants, st: TrackState, buffers: FrameBuffers,
             return False
 
 
-@njit(cache=True)
+@kernel
 def end_step(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out: StepOutputs,
              env: int) -> None:
     """Close env ``env``'s step: the progress reward, the laps and the episode's end."""
@@ -362,7 +362,7 @@ def end_step(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out: Step
     st.in_step[env] = False
 
 
-@njit(cache=True)
+@kernel
 def run_steps(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out: StepOutputs,
               events: StopLineEvents, steps_left: IntArray) -> bool:
     """Every env's next ``steps_left[env]`` steps with its ``st.command``; True when some

@@ -14,13 +14,13 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from sdc_gym.kernel_compiler import kernel
 
 _SPLIT = 134217729.0  # 2**27 + 1: Dekker's splitting constant
 _DBL_MIN = 2.2250738585072014e-308
 
 
-@njit(cache=True)
+@kernel
 def _dl_mul(x: float, y: float) -> tuple[float, float]:
     """x * y as an unevaluated sum hi + lo, exactly (Dekker's mul12)."""
     xx = x * _SPLIT
@@ -34,7 +34,7 @@ def _dl_mul(x: float, y: float) -> tuple[float, float]:
     return z, zz
 
 
-@njit(cache=True)
+@kernel
 def _norm2(x0: float, x1: float, largest: float) -> float:
     """CPython's ``vector_norm`` for two finite non-negative coordinates, max > 0."""
     _, max_e = math.frexp(largest)
@@ -62,7 +62,7 @@ def _norm2(x0: float, x1: float, largest: float) -> float:
     return h / scale
 
 
-@njit(cache=True)
+@kernel
 def py_hypot(x: float, y: float) -> float:
     """``math.hypot(x, y)`` exactly as CPython computes it."""
     ax = abs(x)
@@ -77,7 +77,7 @@ def py_hypot(x: float, y: float) -> float:
     return _norm2(ax, ay, largest)
 
 
-@njit(cache=True)
+@kernel
 def py_remainder(x: float, y: float) -> float:
     """``math.remainder(x, y)`` (IEEE 754 remainder, exact) for finite x and y != 0."""
     if math.isnan(x) or math.isnan(y):
@@ -99,25 +99,25 @@ def py_remainder(x: float, y: float) -> float:
     return math.copysign(1.0, x) * r
 
 
-@njit(cache=True)
+@kernel
 def py_max(a: float, b: float) -> float:
     """Python's ``max(a, b)``: ``a`` unless ``b > a`` (so ``max(-0.0, 0.0)`` is -0.0)."""
     return b if b > a else a
 
 
-@njit(cache=True)
+@kernel
 def py_min(a: float, b: float) -> float:
     """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
     return b if b < a else a
 
 
-@njit(cache=True)
+@kernel
 def np_maximum(a: float, b: float) -> float:
     """``np.maximum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
     return a if (a >= b or a != a) else b
 
 
-@njit(cache=True)
+@kernel
 def np_minimum(a: float, b: float) -> float:
     """``np.minimum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
     return a if (a <= b or a != a) else b

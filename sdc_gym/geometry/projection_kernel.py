@@ -18,8 +18,9 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from sdc_gym.kernel_compiler import kernel
 
 NEWTON_ITERATIONS = 6
 """Newton iterations at most (2-3 from a guess within a metre)."""
@@ -41,7 +42,7 @@ class LineGeometry(NamedTuple):
     length: float  # loop length, m
 
 
-@njit(cache=True)
+@kernel
 def project_point(line: LineGeometry, x: float, y: float, s0: float
                   ) -> tuple[float, float, float]:
     """(s, d, how far s moved from ``s0``) of the point ``(x, y)``, Newton from ``s0``."""
@@ -82,7 +83,7 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
     return u / scale, d, moved
 
 
-@njit(cache=True)
+@kernel
 def project_points(line: LineGeometry, x: NDArray[np.float64], y: NDArray[np.float64],
                    s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
                    moved: NDArray[np.float64]) -> None:

@@ -15,8 +15,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
+
+from sdc_gym.kernel_compiler import kernel
 
 CHANGE_GUARD_S = 1e-9
 """The cached "next change" time is set this far early so that rounding of (t + offset) mod
@@ -36,7 +37,7 @@ class LightSchedule(NamedTuple):
     script_states: NDArray[np.int8]
 
 
-@njit(cache=True)
+@kernel
 def _script_row(times: NDArray[np.float64], length: int, time_s: float) -> int:
     """The last entry at or before ``time_s`` (``searchsorted(..., "right") - 1``, >= 0)."""
     row = 0
@@ -48,7 +49,7 @@ def _script_row(times: NDArray[np.float64], length: int, time_s: float) -> int:
     return row
 
 
-@njit(cache=True)
+@kernel
 def states_at(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: float,
               out: NDArray[np.int8]) -> None:
     """Each light's state at ``time_s`` (s since reset) into ``out`` (k,)."""
@@ -63,47 +64,54 @@ def states_at(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: flo
             out[light] = schedule.script_states[light, row]
 
 
-@njit(cache=True)
+@kernel
+def time_to_change(schedule: LightSchedule, offsets: NDArray[np.float64], light: int,
+                   time_s: float) -> float:
+    """s from ``time_s`` until light ``light``'s state next changes (inf: never)."""
+    phase = (time_s + offsets[light]) % schedule.cycle[light]
+    if phase < schedule.green_end[light]:
+        boundary = schedule.green_end[light]
+    elif phase < schedule.yellow_end[light]:
+        boundary = schedule.yellow_end[light]
+    else:
+        boundary = schedule.cycle[light]
+    remaining = boundary - phase
+    length = schedule.script_length[light]
+    if length:
+        times = schedule.script_times[light]
+        states = schedule.script_states[light]
+        row = _script_row(times, length, time_s)
+        # The next entry that changes the state (a repeated state is no change).
+        remaining = np.inf
+        for k in range(length):
+            if times[k] > time_s and states[k] != states[row]:
+                remaining = times[k] - time_s
+                break
+    return remaining
+
+
+@kernel
 def times_to_change(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: float,
                     out: NDArray[np.float64]) -> None:
     """s from ``time_s`` until each light's state next changes (inf: never) into ``out``."""
     for light in range(offsets.size):
-        phase = (time_s + offsets[light]) % schedule.cycle[light]
-        if phase < schedule.green_end[light]:
-            boundary = schedule.green_end[light]
-        elif phase < schedule.yellow_end[light]:
-            boundary = schedule.yellow_end[light]
-        else:
-            boundary = schedule.cycle[light]
-        out[light] = boundary - phase
-        length = schedule.script_length[light]
-        if length:
-            times = schedule.script_times[light]
-            states = schedule.script_states[light]
-            row = _script_row(times, length, time_s)
-            # The next entry that changes the state (a repeated state is no change).
-            out[light] = np.inf
-            for k in range(length):
-                if times[k] > time_s and states[k] != states[row]:
-                    out[light] = times[k] - time_s
-                    break
+        out[light] = time_to_change(schedule, offsets, light, time_s)
 
 
-@njit(cache=True)
+@kernel
 def refresh_lights(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: float,
                    states: NDArray[np.int8]) -> float:
     """The states at ``time_s`` into ``states``; returns the next change's cached time."""
     states_at(schedule, offsets, time_s, states)
     soonest = np.inf
-    remaining = np.empty(offsets.size)
-    times_to_change(schedule, offsets, time_s, remaining)
-    for value in remaining:
+    for light in range(offsets.size):
+        value = time_to_change(schedule, offsets, light, time_s)
         if value < soonest:  # np.min(initial=inf); NaN never occurs (finite phases)
             soonest = value
     return time_s + soonest - CHANGE_GUARD_S
 
 
-@njit(cache=True)
+@kernel
 def step_lights(schedule: LightSchedule, offsets: NDArray[np.float64],
                 clock: NDArray[np.float64], next_change: NDArray[np.float64],
                 states: NDArray[np.int8], env: int, dt: float) -> bool:

@@ -20,10 +20,10 @@ from dataclasses import asdict, dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.geometry.exact_kernels import py_min
+from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import GREEN, RED, YELLOW
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.metrics.incidents import INCIDENT_KINDS, Incident, IncidentRules
@@ -137,7 +137,7 @@ def stop_line_events(rows: int) -> StopLineEvents:
                           np.zeros(2, dtype=np.int64))
 
 
-@njit(cache=True)
+@kernel
 def _crossing_column(state: int) -> int:
     if state == RED:
         return 0
@@ -148,7 +148,7 @@ def _crossing_column(state: int) -> int:
     return 3
 
 
-@njit(cache=True)
+@kernel
 def stop_line_frame(lines: StopLines, st: StopLineState, env: int, frame: int, s: float,
                     d: float, speed: float, lateral: float, states: NDArray[np.int8],
                     events: StopLineEvents) -> None:
@@ -222,7 +222,7 @@ def stop_line_frame(lines: StopLines, st: StopLineState, env: int, frame: int, s
     st.last_lat[env] = lateral
 
 
-@njit(cache=True)
+@kernel
 def stop_lines_record(lines: StopLines, st: StopLineState, env: int, s: NDArray[np.float64],
                       d: NDArray[np.float64], speed: NDArray[np.float64],
                       lateral: NDArray[np.float64], states: NDArray[np.int8],

@@ -5,11 +5,12 @@ every env after every step; :meth:`TrackMap.next_stop_line
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym.kernel_compiler import kernel
 
-@njit(cache=True)
+
+@kernel
 def next_stop_line(sorted_s: NDArray[np.float64], sorted_index: NDArray[np.int64],
                    length: float, s: float) -> tuple[int, float]:
     """(index, m ahead in [0, length)) of the first stop line at or ahead of arc length

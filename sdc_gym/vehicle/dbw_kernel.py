@@ -19,10 +19,10 @@ import math
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.geometry.exact_kernels import py_max, py_min, py_remainder
+from sdc_gym.kernel_compiler import kernel
 
 if TYPE_CHECKING:
     from sdc_gym.vehicle.dbw_vehicle import VehicleParameters
@@ -85,7 +85,7 @@ def lag_gains(params: VehicleParameters, dt: float) -> NDArray[np.float64]:
                      _lag_gain(params.steering_time_constant, dt)])
 
 
-@njit(cache=True)
+@kernel
 def reset_vehicle(c: NDArray[np.float64], states: NDArray[np.float64], car: int, x: float,
                   y: float, yaw: float, speed: float, throttle: float, brake_torque: float,
                   steering_wheel_angle: float) -> None:
@@ -108,7 +108,7 @@ def reset_vehicle(c: NDArray[np.float64], states: NDArray[np.float64], car: int,
     st[ROAD_WHEEL_ANGLE] = swa * c[CURVATURE_PER_SWA]
 
 
-@njit(cache=True)
+@kernel
 def step_vehicle(c: NDArray[np.float64], gains: NDArray[np.float64],
                  states: NDArray[np.float64], car: int, throttle: float, brake_torque: float,
                  steering_wheel_angle: float, dt: float) -> None:

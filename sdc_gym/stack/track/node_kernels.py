@@ -22,7 +22,6 @@ import math
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.geometry.exact_kernels import (
@@ -33,6 +32,7 @@ from sdc_gym.geometry.exact_kernels import (
     py_min,
     py_remainder,
 )
+from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import GREEN, RED, UNKNOWN, YELLOW
 
 FloatArray = NDArray[np.float64]
@@ -57,7 +57,7 @@ STATE_TIME_SCALE_S = 10.0
 
 
 # ============================================================================ controllers
-@njit(cache=True)
+@kernel
 def pid_update(kp: float, ki: float, kd: float, low: float, high: float, integral: float,
                last_error: float, has_last: bool, error: float, dt: float
                ) -> tuple[float, float]:
@@ -75,13 +75,13 @@ def pid_update(kp: float, ki: float, kd: float, low: float, high: float, integra
     return output, integral
 
 
-@njit(cache=True)
+@kernel
 def low_pass(a: float, value: float, x: float) -> float:
     """``a x + (1 - a) y_prev``."""
     return a * x + (1.0 - a) * value
 
 
-@njit(cache=True)
+@kernel
 def yaw_steering(wheel_base: float, steer_ratio: float, min_speed: float,
                  max_lat_accel: float, max_steer_angle: float, target_linear: float,
                  target_angular: float, current_speed: float) -> float:
@@ -144,7 +144,7 @@ def twist_state(envs: int) -> TwistState:
                       z((envs, 3)))
 
 
-@njit(cache=True)
+@kernel
 def twist_reset(st: TwistState, env: int) -> None:
     """Forget the PID state and the filter (manual mode, a new episode)."""
     st.integral[env] = 0.0
@@ -157,7 +157,7 @@ def twist_reset(st: TwistState, env: int) -> None:
     st.stale[env] = False
 
 
-@njit(cache=True)
+@kernel
 def longitudinal(p: TwistParameters, acceleration: float) -> tuple[float, float]:
     """(throttle, brake torque N m) for a filtered acceleration command (m/s^2)."""
     if acceleration > 0.0:
@@ -167,7 +167,7 @@ def longitudinal(p: TwistParameters, acceleration: float) -> tuple[float, float]
     return 0.0, 0.0
 
 
-@njit(cache=True)
+@kernel
 def twist_control(p: TwistParameters, st: TwistState, env: int, now: float,
                   target_linear: float, target_angular: float, twist_time: float,
                   current_speed: float, velocity_time: float, dbw_enabled: bool) -> None:
@@ -243,7 +243,7 @@ def follower_state(envs: int) -> FollowerState:
                          np.zeros(envs), np.zeros(envs, dtype=bool))
 
 
-@njit(cache=True)
+@kernel
 def curvature_to_point(x: float, y: float, yaw: float, target_x: float,
                        target_y: float) -> float:
     """1/m, curvature of the arc from the pose (tangent to the heading) through the
@@ -259,7 +259,7 @@ def curvature_to_point(x: float, y: float, yaw: float, target_x: float,
     return 2.0 * local_y / squared
 
 
-@njit(cache=True)
+@kernel
 def target_point(x: float, y: float, fx: FloatArray, fy: FloatArray,
                  lookahead: float) -> tuple[float, float]:
     """The polyline ``(fx, fy)``'s point at ``lookahead`` m from (x, y): the first point
@@ -288,7 +288,7 @@ def target_point(x: float, y: float, fx: FloatArray, fy: FloatArray,
     return x + p0x + t * ux, y + p0y + t * uy
 
 
-@njit(cache=True)
+@kernel
 def is_following(fc: FollowerConstants, x: float, y: float, yaw: float, fx: FloatArray,
                  fy: FloatArray) -> bool:
     """The pose is on the path: near the line through the first two final waypoints and
@@ -305,7 +305,7 @@ def is_following(fc: FollowerConstants, x: float, y: float, yaw: float, fx: Floa
     return displacement < fc.displacement_threshold and angle < fc.angle_threshold
 
 
-@njit(cache=True)
+@kernel
 def command_speed(fc: FollowerConstants, x: float, y: float, yaw: float, fx: FloatArray,
                   fy: FloatArray, fspeed: FloatArray) -> float:
     """m/s, the first final waypoint's speed (or the first one ahead of the car's)."""
@@ -318,7 +318,7 @@ def command_speed(fc: FollowerConstants, x: float, y: float, yaw: float, fx: Flo
     return fspeed[fx.size - 1]
 
 
-@njit(cache=True)
+@kernel
 def follow(fc: FollowerConstants, st: FollowerState, env: int, x: float, y: float,
            yaw: float, speed: float, fx: FloatArray, fy: FloatArray, fspeed: FloatArray
            ) -> tuple[float, float]:
@@ -368,7 +368,7 @@ def updater_state(envs: int) -> UpdaterState:
     return UpdaterState(np.full(envs, -1, dtype=np.int64), np.zeros(envs, dtype=np.int64))
 
 
-@njit(cache=True)
+@kernel
 def closest_waypoint(uc: UpdaterConstants, x: float, y: float) -> int:
     """Index of the waypoint closest to (x, y) (a full search; first of equals)."""
     best, best_sq = 0, np.inf
@@ -381,7 +381,7 @@ def closest_waypoint(uc: UpdaterConstants, x: float, y: float) -> int:
     return best
 
 
-@njit(cache=True)
+@kernel
 def next_waypoint(uc: UpdaterConstants, st: UpdaterState, env: int, x: float, y: float,
                   yaw: float) -> int:
     """Index of the next waypoint ahead of the pose: the closest in a window around the
@@ -409,7 +409,7 @@ def next_waypoint(uc: UpdaterConstants, st: UpdaterState, env: int, x: float, y:
     return closest if ahead > 0.0 else (closest + 1) % n
 
 
-@njit(cache=True)
+@kernel
 def lower_for_stop(uc: UpdaterConstants, first: int, stop_waypoint: int,
                    speeds: FloatArray) -> None:
     """``speeds`` (of the waypoints from ``first`` on) lowered in place to stop
@@ -428,7 +428,7 @@ def lower_for_stop(uc: UpdaterConstants, first: int, stop_waypoint: int,
         speeds[j] = np_minimum(speeds[j], ramp)
 
 
-@njit(cache=True)
+@kernel
 def update_waypoints(uc: UpdaterConstants, st: UpdaterState, env: int, now: float, x: float,
                      y: float, yaw: float, pose_time: float, stop_waypoint: int,
                      watch_light: bool, light_time: float, has_cap: bool, speed_cap: float,
@@ -482,7 +482,7 @@ def detector_state(envs: int) -> DetectorState:
     return DetectorState(i(), i(), i(), i(), i(), i(), i(), np.zeros(envs), np.zeros(envs), i())
 
 
-@njit(cache=True)
+@kernel
 def detector_reset(st: DetectorState, env: int) -> None:
     st.line[env] = -1
     st.candidate[env] = UNKNOWN
@@ -495,13 +495,13 @@ def detector_reset(st: DetectorState, env: int) -> None:
     st.report_time[env] = -np.inf
 
 
-@njit(cache=True)
+@kernel
 def in_gate(dc: DetectorConstants, stop_line: int, distance: float) -> bool:
     """Whether the detector looks at the light (a next line within the gate)."""
     return stop_line >= 0 and distance <= dc.gate
 
 
-@njit(cache=True)
+@kernel
 def detect(dc: DetectorConstants, st: DetectorState, env: int, time_s: float, stop_line: int,
            distance: float, frame_state: int) -> None:
     """One frame: ``frame_state`` is the source's state (inside the gate) or UNKNOWN;
@@ -526,14 +526,14 @@ def detect(dc: DetectorConstants, st: DetectorState, env: int, time_s: float, st
 
 
 # ============================================================================ behavior
-@njit(cache=True)
+@kernel
 def can_stop(speed: float, room: float, decel: float, two: float) -> bool:
     """Braking at ``decel`` stops before the line (with the slack): ``v^2 <= 2 a room``
     (``v ** two``: Python's float power, the C library's ``pow``)."""
     return math.pow(speed, two) <= 2.0 * decel * py_max(room + FEASIBILITY_SLACK_M, 0.0)
 
 
-@njit(cache=True)
+@kernel
 def stop_at_red(max_decel: float, comfortable_decel: float, stop_on_yellow: bool,
                 speed_margin: float, two: float, stopping_for: int, speed: float,
                 speed_limit: float, line: int, waypoint: int, room: float, state: int
@@ -553,7 +553,7 @@ def stop_at_red(max_decel: float, comfortable_decel: float, stop_on_yellow: bool
     return cruise, -1, MODE_GO_YELLOW, stopping_for
 
 
-@njit(cache=True)
+@kernel
 def action_decision(continuous: bool, index: int, speed_value: float, stop_value: float,
                     speed_limit: float, speed_margin: float, waypoint: int
                     ) -> tuple[float, int, int]:
@@ -574,7 +574,7 @@ def action_decision(continuous: bool, index: int, speed_value: float, stop_value
     return speed, stop_at, mode
 
 
-@njit(cache=True)
+@kernel
 def state_time(key_line: int, key_state: int, since: float, line: int, state: int,
                time_s: float) -> tuple[int, int, float, float]:
     """How long the detector has reported this line's state: (key line, key state, since,
@@ -584,7 +584,7 @@ def state_time(key_line: int, key_state: int, since: float, line: int, state: in
     return key_line, key_state, since, time_s - since
 
 
-@njit(cache=True)
+@kernel
 def encode_features(max_decel: float, comfortable_decel: float, speed: float,
                     speed_limit: float, line: int, distance: float, room: float, state: int,
                     state_seconds: float, stopping: bool, out: NDArray[np.float32]) -> None:
@@ -613,7 +613,7 @@ def encode_features(max_decel: float, comfortable_decel: float, speed: float,
 
 
 # ============================================================================ node rates
-@njit(cache=True)
+@kernel
 def node_due(runs: int, ticks: int, tick: int) -> bool:
     """Whether a node running ``runs`` times every ``ticks`` loop ticks (a reduced
     fraction; 1/1: every tick) runs at ``tick``: at tick 0, and whenever

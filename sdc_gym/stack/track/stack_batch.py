@@ -20,9 +20,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import UNKNOWN
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent
 from sdc_gym.stack.track.node_kernels import (
@@ -130,7 +130,7 @@ def stack_state(envs: int, final_count: int) -> StackState:
                       i(), f())
 
 
-@njit(cache=True)
+@kernel
 def reset_stack(c: StackConstants, st: StackState, env: int) -> None:
     """A new episode: every node of env ``env`` forgets its state."""
     st.ticks[env] = 0
@@ -159,7 +159,7 @@ def reset_stack(c: StackConstants, st: StackState, env: int) -> None:
     st.state_since[env] = 0.0
 
 
-@njit(cache=True)
+@kernel
 def observed_stop_line(line: int, distance: float) -> tuple[int, float]:
     """The next stop line as ``detector.next_stop_line`` reads it from the observation's
     float32 ``next_stop_line`` (index -1: none, distance inf)."""
@@ -169,7 +169,7 @@ def observed_stop_line(line: int, distance: float) -> tuple[int, float]:
     return -1, np.inf
 
 
-@njit(cache=True)
+@kernel
 def stack_tick(c: StackConstants, st: StackState, env: int, x: float, y: float, yaw: float,
                speed: float, dbw_enabled: bool, line: int, distance: float,
                light_states: NDArray[np.int8]) -> None:
@@ -217,7 +217,7 @@ def stack_tick(c: StackConstants, st: StackState, env: int, x: float, y: float, 
                       now, dbw_enabled)
 
 
-@njit(cache=True)
+@kernel
 def observe(c: StackConstants, st: StackState, env: int, speed: float, line: int,
             distance: float, out: NDArray[np.float32]) -> None:
     """The decision's observation (``TrackDecisionBehavior.observe``) of env ``env`` at
