@@ -83,10 +83,12 @@ def run_decisions(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out:
 
 
 @kernel
-def observe_envs(st: TrackState, sc: StackConstants, ss: StackState, rows: NDArray[np.int64],
-                 out: NDArray[np.float32]) -> None:
-    """The decision observations of envs ``rows`` into ``out[rows]`` (see
+def observe_envs(st: TrackState, sc: StackConstants, ss: StackState,
+                 chosen: NDArray[np.bool_], out: NDArray[np.float32]) -> None:
+    """The decision observations of the ``chosen`` envs into their rows of ``out`` (see
     :func:`~sdc_gym.stack.track.stack_batch.observe`)."""
-    for env in rows:
+    for env in range(chosen.size):
+        if not chosen[env]:
+            continue
         line, distance = observed_stop_line(st.next_line[env], st.line_distance[env])
         observe(sc, ss, env, _f32(st.vehicle[env, SPEED]), line, distance, out[env])

@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.track_behavior_kernel import BAD_COMMAND, observe_envs, run_decisions
 from sdc_gym.envs.track_world import TrackWorld
+from sdc_gym.kernel_compiler import bind
 from sdc_gym.stack.track.behavior import DEFAULT_SPEED_MARGIN_MPS
 from sdc_gym.stack.track.dbw_stack import dbw_stack_for_env
 from sdc_gym.stack.track.decisions import (
@@ -100,6 +101,8 @@ class TrackBehaviorWorld:
         self.observations = np.zeros((envs, self.features.size), dtype=np.float32)
         self._steps_left = np.zeros(envs, dtype=np.int64)
         self._bad = np.zeros(1, dtype=np.int64)
+        self._chosen = np.zeros(envs, dtype=bool)  # the envs to observe
+        self._observer: tuple[int, Any] = (-1, None)
         self._max_brake = float(setup.max_brake_torque)
         self._max_steer = float(setup.max_steering_angle)
 
@@ -108,8 +111,9 @@ class TrackBehaviorWorld:
         """Start env ``env``'s episode (see :meth:`TrackWorld.reset_at`)."""
         self.world.reset_at(env, rng)
         reset_stack(self.stack_constants, self.stack, env)
-        observe_envs(self.world.state, self.stack_constants, self.stack,
-                     np.array([env], dtype=np.int64), self.observations)
+        self._chosen[:] = False
+        self._chosen[env] = True
+        self._observe()
 
     # ------------------------------------------------------------------ stepping
     def set_actions(self, actions: Any, rows: list[int] | NDArray[np.int64]) -> None:
@@ -155,20 +159,35 @@ class TrackBehaviorWorld:
                     total += reward
                 totals[env] = total
                 last[env] = world.step_incidents(env, items, done - 1)
-        rows = np.flatnonzero(active)
-        observe_envs(world.state, self.stack_constants, self.stack, rows, self.observations)
+        self._chosen[:] = active
+        self._observe()
         return totals, last
 
     def _run(self) -> bool:
         world = self.world
-        status = run_decisions(world.constants, world.state, world.buffers, world.outputs,
-                               world.events, self.stack_constants, self.stack,
-                               self._steps_left, self._max_brake, self._max_steer, self._bad)
+        status = world.kernel_call(run_decisions, self.stack_constants, self.stack,
+                                   self._steps_left, self._max_brake, self._max_steer,
+                                   self._bad)()
         if status == BAD_COMMAND:
             env = int(self._bad[0])
             # The env's own check of an action, which the stack's command failed.
             self.setup.raise_bad_action(world.state.command[env].tolist())
         return bool(status)
+
+    def _observe(self) -> None:
+        """The observations of the ``_chosen`` envs (a call bound to the arrays; see
+        :meth:`TrackWorld.kernel_call`)."""
+        generation, call = self._observer
+        if call is None or generation != self.world.generation:
+            call = bind(observe_envs, self.world.state, self.stack_constants, self.stack,
+                        self._chosen, self.observations)
+            self._observer = (self.world.generation, call)
+        call()
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_observer"] = (-1, None)  # machine code: bound again after unpickling
+        return state
 
     # ------------------------------------------------------------------ reading one env
     def decision_name(self, env: int) -> str:

@@ -50,6 +50,7 @@ from sdc_gym.envs.track_setup import (
     TrackSetup,
 )
 from sdc_gym.geometry.collision import boxes_overlap
+from sdc_gym.kernel_compiler import bind
 from sdc_gym.lights.light_kernel import refresh_lights
 from sdc_gym.lights.traffic_lights import RED, UNKNOWN, YELLOW
 from sdc_gym.metrics.incidents import Incident
@@ -119,6 +120,8 @@ class TrackWorld:
         self.outputs: StepOutputs = step_outputs(envs, 0)
         self.events = stop_line_events(0)
         self._steps_left = np.zeros(envs, dtype=np.int64)
+        self._bound: dict[Any, tuple[int, Callable[[], Any]]] = {}  # see kernel_call
+        self.generation = 0  # of the state and buffers: bound calls are redone when it grows
 
     # ------------------------------------------------------------------ episodes
     def reset_at(self, env: int, rng: np.random.Generator) -> None:
@@ -166,6 +169,7 @@ class TrackWorld:
             grown = np.zeros((self.envs, len(periods), 2), dtype=np.int64)
             grown[:, :st.manual_periods.shape[1]] = st.manual_periods
             self.state = st = st._replace(manual_periods=grown)
+            self.generation += 1
         if periods:
             st.manual_periods[env, :len(periods)] = periods
         st.manual_count[env] = len(periods)
@@ -200,6 +204,24 @@ class TrackWorld:
             lights = max(self.track.light_count, 1)
             self.events = stop_line_events(self.envs * frames * lights)
             self._steps_capacity = steps
+            self.generation += 1
+
+    def kernel_call(self, function: Any, *extra: Any) -> Callable[[], Any]:
+        """``function(constants, state, buffers, outputs, events, *extra)`` as a call bound
+        to this world's arrays (:func:`~sdc_gym.kernel_compiler.bind`: no type dispatch
+        per call), rebound after the state or the buffers were replaced
+        (:attr:`generation`)."""
+        generation, call = self._bound.get(function, (-1, None))
+        if call is None or generation != self.generation:
+            call = bind(function, self.constants, self.state, self.buffers, self.outputs,
+                        self.events, *extra)
+            self._bound[function] = (self.generation, call)
+        return call
+
+    def __getstate__(self) -> dict[str, Any]:
+        state = self.__dict__.copy()
+        state["_bound"] = {}  # machine code entry points: bound again after unpickling
+        return state
 
     def step(self, active: NDArray[np.bool_]) -> tuple[NDArray[np.float64], list[Any]]:
         """One env step of the ``active`` envs, each with its commands
@@ -213,8 +235,7 @@ class TrackWorld:
         return reward, incidents
 
     def _run_steps(self) -> bool:
-        return run_steps(self.constants, self.state, self.buffers, self.outputs, self.events,
-                         self._steps_left)
+        return self.kernel_call(run_steps, self._steps_left)()
 
     def advance(self, steps: int, kernel: Callable[[], bool]) -> list[Any]:
         """Run ``kernel`` (a call of a frame kernel over this world's state, returning
