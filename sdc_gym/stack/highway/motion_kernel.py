@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 # Columns of a queue row: one row per planned state.
 X, Y, S, D, HEADING, INCREMENT = range(6)
 

@@ -16,6 +16,8 @@ import math
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 SOUND, FAULTY, BOUNDARY = 0, 1, 2
 
 
