@@ -65,11 +65,9 @@ from sdc_gym.vehicle.dbw_kernel import (
     YAW_RATE,
     X,
     Y,
-    lag_gains,
     reset_vehicle,
-    vehicle_constants,
 )
-from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT, VehicleState
+from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT, VehicleState, lag_gains, vehicle_constants
 from sdc_gym.vehicle.manual_driver import ManualDriver
 
 _NO_INCIDENTS: tuple[Incident, ...] = ()

@@ -9,23 +9,19 @@ world's frame kernel steps every env's car with the same function.
 
 State. One row of :data:`STATE_SIZE` floats per car, the fields of
 :class:`~sdc_gym.vehicle.dbw_vehicle.VehicleState` in their order (the column constants
-below). Constants. :func:`vehicle_constants` derives, once per car model, the numbers the
-step needs (total mass, brake force limit, creep, ...), exactly as the scalar model did.
+below). Constants. :func:`~sdc_gym.vehicle.dbw_vehicle.vehicle_constants` derives, once
+per car model, the numbers the step needs (total mass, brake force limit, creep, ...).
 """
 
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.geometry.exact_kernels import py_max, py_min, py_remainder
 from sdc_gym.kernel_compiler import kernel
-
-if TYPE_CHECKING:
-    from sdc_gym.vehicle.dbw_vehicle import VehicleParameters
 
 # --- state columns: VehicleState's fields, in order ------------------------------------------
 X, Y, YAW, SPEED, YAW_RATE, ACCELERATION, LATERAL_ACCELERATION = range(7)
@@ -41,48 +37,6 @@ CONSTANTS_SIZE = 16
 _TWO_PI = 2.0 * math.pi
 # Below this half-turn per step (rad) sin(h)/h uses its series: no cancellation.
 _SMALL_HALF_TURN = 1e-4
-
-
-def vehicle_constants(params: VehicleParameters) -> NDArray[np.float64]:
-    """The step's constants for a car model (a float64 vector, see the module)."""
-    c = np.zeros(CONSTANTS_SIZE)
-    c[MASS] = params.total_mass
-    c[INVERSE_RADIUS] = 1.0 / params.wheel_radius
-    c[MAX_BRAKE_FORCE] = params.max_brake_force
-    c[ROLLING] = params.rolling_force
-    c[DRAG] = params.drag_coefficient
-    c[LINEAR_DRAG] = params.linear_drag
-    c[REST_SPEED] = params.rest_speed
-    creep0 = params.creep_force_at_rest
-    c[CREEP0] = creep0
-    # At rest the drive force must beat the brake plus this: the creep beyond rolling
-    # resistance is creep_hold_torque / wheel_radius (computed like the brake force so
-    # that a brake torque equal to the holding torque ties exactly); without creep the
-    # rolling resistance alone holds.
-    c[REST_PUSH] = (params.creep_hold_torque * c[INVERSE_RADIUS] if creep0
-                    else -params.rolling_force)
-    c[CREEP_SLOPE] = creep0 / params.creep_speed
-    c[CREEP_SPEED] = params.creep_speed if creep0 else 0.0
-    c[FORCE_MAX] = params.max_drive_force
-    c[POWER_MAX] = params.max_drive_power
-    c[MAX_SWA] = params.steering_wheel_lock
-    c[CURVATURE_PER_SWA] = 1.0 / params.road_wheel_ratio
-    c[WHEEL_BASE] = params.wheel_base
-    return c
-
-
-def _lag_gain(time_constant: float, dt: float) -> float:
-    """Exact first-order-lag gain for one step: 1 means no lag."""
-    if time_constant <= 0.0:
-        return 1.0
-    return -math.expm1(-dt / time_constant)
-
-
-def lag_gains(params: VehicleParameters, dt: float) -> NDArray[np.float64]:
-    """(throttle, brake, steering) lag gains for steps of ``dt`` s."""
-    return np.array([_lag_gain(params.throttle_time_constant, dt),
-                     _lag_gain(params.brake_time_constant, dt),
-                     _lag_gain(params.steering_time_constant, dt)])
 
 
 @kernel

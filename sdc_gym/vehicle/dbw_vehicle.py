@@ -89,14 +89,29 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
 from sdc_gym.vehicle.dbw_kernel import (
+    CONSTANTS_SIZE,
+    CREEP0,
+    CREEP_SLOPE,
+    CREEP_SPEED,
+    CURVATURE_PER_SWA,
+    DRAG,
+    FORCE_MAX,
+    INVERSE_RADIUS,
+    LINEAR_DRAG,
+    MASS,
+    MAX_BRAKE_FORCE,
     MAX_SWA,
+    POWER_MAX,
+    REST_PUSH,
+    REST_SPEED,
+    ROLLING,
     STATE_SIZE,
-    lag_gains,
+    WHEEL_BASE,
     reset_vehicle,
     step_vehicle,
-    vehicle_constants,
 )
 
 PHYSICS_DT = 0.02
@@ -109,11 +124,51 @@ FUEL_KG_PER_GALLON = 2.858
 """Mass of a US gallon of gasoline, kg (the reference stack's GAS_DENSITY)."""
 
 
-
 def _is_real(value: object) -> bool:
     """A real number (int or float; bools are not numbers here)."""
     return isinstance(value, int | float) and not isinstance(value, bool)
 
+
+def vehicle_constants(params: VehicleParameters) -> NDArray[np.float64]:
+    """The step's constants for a car model (a float64 vector, see the module)."""
+    c = np.zeros(CONSTANTS_SIZE)
+    c[MASS] = params.total_mass
+    c[INVERSE_RADIUS] = 1.0 / params.wheel_radius
+    c[MAX_BRAKE_FORCE] = params.max_brake_force
+    c[ROLLING] = params.rolling_force
+    c[DRAG] = params.drag_coefficient
+    c[LINEAR_DRAG] = params.linear_drag
+    c[REST_SPEED] = params.rest_speed
+    creep0 = params.creep_force_at_rest
+    c[CREEP0] = creep0
+    # At rest the drive force must beat the brake plus this: the creep beyond rolling
+    # resistance is creep_hold_torque / wheel_radius (computed like the brake force so
+    # that a brake torque equal to the holding torque ties exactly); without creep the
+    # rolling resistance alone holds.
+    c[REST_PUSH] = (params.creep_hold_torque * c[INVERSE_RADIUS] if creep0
+                    else -params.rolling_force)
+    c[CREEP_SLOPE] = creep0 / params.creep_speed
+    c[CREEP_SPEED] = params.creep_speed if creep0 else 0.0
+    c[FORCE_MAX] = params.max_drive_force
+    c[POWER_MAX] = params.max_drive_power
+    c[MAX_SWA] = params.steering_wheel_lock
+    c[CURVATURE_PER_SWA] = 1.0 / params.road_wheel_ratio
+    c[WHEEL_BASE] = params.wheel_base
+    return c
+
+
+def _lag_gain(time_constant: float, dt: float) -> float:
+    """Exact first-order-lag gain for one step: 1 means no lag."""
+    if time_constant <= 0.0:
+        return 1.0
+    return -math.expm1(-dt / time_constant)
+
+
+def lag_gains(params: VehicleParameters, dt: float) -> NDArray[np.float64]:
+    """(throttle, brake, steering) lag gains for steps of ``dt`` s."""
+    return np.array([_lag_gain(params.throttle_time_constant, dt),
+                     _lag_gain(params.brake_time_constant, dt),
+                     _lag_gain(params.steering_time_constant, dt)])
 
 @dataclass(frozen=True)
 class VehicleParameters:
