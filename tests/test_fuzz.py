@@ -81,6 +81,18 @@ def merged(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+@pytest.fixture(scope="module", autouse=True)
+def compiled_kernels() -> None:
+    """Every env and native batch stepped once before the fuzzing: the deadline is for a
+    case, not for numba compiling the kernels (a fresh clone's first run)."""
+    for env_id, config in BASE.items():
+        run_episode(gym.make(env_id, config=config, disable_env_checker=True))
+        envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                            config=config)
+        envs.reset(seed=0)
+        envs.close()
+
+
 def run_episode(env: gym.Env, seed: int = 0) -> None:
     env.action_space.seed(seed)
     env.reset(seed=seed)

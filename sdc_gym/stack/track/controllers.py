@@ -50,6 +50,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.stack.track.node_kernels import (
     TwistParameters,
     longitudinal,
@@ -252,6 +253,7 @@ class TwistController:
             float(vehicle.brake_deadband), float(p.stop_target_mps),
             float(p.standstill_speed_mps), float(p.watchdog_s), self.sample_time_s)
         self.state = twist_state(1)
+        self._control = TypedCall(twist_control)
         self.reset()
 
     def reset(self) -> None:
@@ -299,7 +301,7 @@ class TwistController:
         ``twist_time_s`` and ``velocity_time_s`` are when the twist command and the speed
         were last received (for the watchdog).
         """
-        twist_control(self.constants, self.state, 0, float(now_s), float(target_linear_mps),
+        self._control(self.constants, self.state, 0, float(now_s), float(target_linear_mps),
                       float(target_angular_radps), float(twist_time_s),
                       float(current_speed_mps), float(velocity_time_s), bool(dbw_enabled))
         if not dbw_enabled:

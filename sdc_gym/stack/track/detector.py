@@ -43,6 +43,7 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.lights.traffic_lights import RED, UNKNOWN, VALID_STATES
 from sdc_gym.stack.track.node_kernels import (
     DetectorConstants,
@@ -151,6 +152,7 @@ class TrafficLightDetector:
                                            int(self.params.debounce_frames))
         self.classifications = 0
         self._state = detector_state(1)
+        self._in_gate, self._detect = TypedCall(in_gate), TypedCall(detect)
         self.reset()
 
     def reset(self) -> None:
@@ -167,7 +169,7 @@ class TrafficLightDetector:
         """One frame from plain inputs: the next stop line and its distance; ``classify``
         is called (inside the gate only) for the light's state code."""
         stop_line, distance_m = int(stop_line), float(distance_m)
-        if in_gate(self.constants, stop_line, distance_m):
+        if self._in_gate(self.constants, stop_line, distance_m):
             frame_state = int(classify())
             self.classifications += 1
             if frame_state not in VALID_STATES:
@@ -179,7 +181,7 @@ class TrafficLightDetector:
         if stop_line >= len(self.stop_waypoints):
             raise ValueError(f"stop line index {stop_line} out of range: the detector "
                              f"knows {len(self.stop_waypoints)} stop line(s)")
-        detect(self.constants, self._state, 0, float(time_s), stop_line, distance_m,
+        self._detect(self.constants, self._state, 0, float(time_s), stop_line, distance_m,
                frame_state)
         s = self._state
         self.report = LightReport(stop_line, int(s.report_waypoint[0]), int(s.state[0]),

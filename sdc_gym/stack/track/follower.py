@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.stack.track.node_kernels import FollowerConstants, follower_state
 from sdc_gym.stack.track.node_kernels import command_speed as _command_speed
 from sdc_gym.stack.track.node_kernels import curvature_to_point as _curvature_to_point
@@ -115,6 +116,7 @@ class PurePursuit:
             float(p.displacement_threshold_m), float(p.angle_threshold_rad),
             bool(p.speed_from_next_waypoint))
         self.state = follower_state(1)
+        self._follow = TypedCall(_follow)
         self.reset()
 
     def reset(self) -> None:
@@ -158,7 +160,7 @@ class PurePursuit:
         """The twist command for the pose and speed along ``final``."""
         if len(final) == 0:
             raise ValueError("PurePursuit.follow: final waypoints are empty")
-        linear, angular = _follow(self.constants, self.state, 0, float(x), float(y),
+        linear, angular = self._follow(self.constants, self.state, 0, float(x), float(y),
                                   float(yaw), float(speed_mps), _floats(final.x),
                                   _floats(final.y), _floats(final.speed))
         self.target = (float(self.state.target_x[0]), float(self.state.target_y[0]))

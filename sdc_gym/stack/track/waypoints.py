@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.road.track_map import TrackMap, loop_points
 from sdc_gym.stack.track.node_kernels import (
     UpdaterConstants,
@@ -270,6 +271,7 @@ class WaypointUpdater:
             offsets, float(p.stop_margin_m), float(2.0 * p.stop_decel_mps2),
             float(p.min_ramp_speed_mps), float(p.watchdog_s))
         self.state = updater_state(1)
+        self._update = TypedCall(update_waypoints)
         self.reset()
 
     def reset(self) -> None:
@@ -331,7 +333,7 @@ class WaypointUpdater:
                              f"waypoint index in [0, {n}), got {stop_waypoint}")
         count = self.count
         x_out, y_out, speed = np.empty(count), np.empty(count), np.empty(count)
-        first, stale = update_waypoints(
+        first, stale = self._update(
             self.constants, self.state, 0, float(now_s), float(x), float(y), float(yaw),
             float(pose_time_s), int(stop_waypoint), light_time_s is not None,
             0.0 if light_time_s is None else float(light_time_s), speed_cap_mps is not None,
