@@ -20,8 +20,12 @@ _ENVIRONMENTS = {
     "sdc_gym/TrackLoopBehavior-v0": "sdc_gym.envs.track_behavior:TrackLoopBehaviorEnv",
 }
 
+ENV_IDS: tuple[str, ...] = tuple(_ENVIRONMENTS)
+"""Every env id the package registers (``sdc_gym.ray.register_envs`` registers them with
+Ray too)."""
+
 for _env_id, _entry_point in _ENVIRONMENTS.items():
     if _env_id not in registry:
         register(id=_env_id, entry_point=_entry_point)
 
-__all__ = ["__version__"]
+__all__ = ["ENV_IDS", "__version__"]
