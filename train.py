@@ -1,9 +1,17 @@
-"""Train a stable-baselines3 policy on an sdc-gym env; every run gets its own folder.
+"""Train a policy on an sdc-gym env (stable-baselines3, or RLlib and Ray Tune); every run
+gets its own folder.
 
     python train.py --config configs/train_highway_behavior.yaml --output runs/dqn_highway
     python train.py --config configs/train_highway_behavior.yaml --algo dqn --output runs/dqn
     python train.py --config ... --output runs/x --hp learning_rate=1e-4 --hp n_steps=256
     python train.py --output runs/dqn_highway --resume    # continue after an interruption
+    python train.py --framework rllib --config ... --algo ppo --output runs/ppo_rllib
+    python train.py --tune configs/tune/highway_ppo.yaml --config ... --output runs/sweep
+
+``--framework rllib`` trains with RLlib on a Ray cluster (``--ray ADDRESS``, default a
+local one for the run; :mod:`training.rllib_trainer`), hyperparameters from
+``configs/hyperparams/rllib_<algo>.yaml``; ``--tune SWEEP.yaml`` sweeps them with Ray Tune
+(:mod:`training.tune_sweep`). Both need the extra ``pip install -e ".[ray]"``.
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
 ``algo``, ``timesteps``, ``n_envs``, ``seed``, ``checkpoint_every`` and ``eval``
@@ -40,10 +48,16 @@ import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
 from evaluation.files import atomic_write_text
+from training.driving_metrics import driving_metrics
 
 ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
+"""stable-baselines3's algorithms (``--framework sb3``, the default)."""
+RLLIB_ALGORITHMS = ("ppo", "dqn")
+"""RLlib's (``--framework rllib``; ``training.rllib_config.ALGORITHMS``)."""
+FRAMEWORKS = ("sb3", "rllib")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
-RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every"}
+RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
+            "framework"}
 EVAL_DEFAULTS = {"every": 50_000, "episodes": 4, "seed": 10_000}
 CHECKPOINT_EVERY = 10_000
 
@@ -53,7 +67,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", type=Path, default=None, help="run config YAML")
     parser.add_argument("--env", default=None, help="env id (overrides the config's)")
-    parser.add_argument("--algo", default=None, choices=ALGORITHMS)
+    parser.add_argument("--algo", default=None,
+                        choices=sorted(set(ALGORITHMS) | set(RLLIB_ALGORITHMS)),
+                        help=f"sb3: {', '.join(ALGORITHMS)}; rllib: "
+                             f"{', '.join(RLLIB_ALGORITHMS)} (default: the config's, else ppo)")
+    parser.add_argument("--framework", default=None, choices=FRAMEWORKS,
+                        help="sb3 (stable-baselines3, default) or rllib (RLlib on Ray)")
+    parser.add_argument("--tune", type=Path, default=None, metavar="SWEEP_YAML",
+                        help="a Ray Tune sweep (search space, scheduler), e.g. "
+                             "configs/tune/highway_ppo.yaml (RLlib)")
+    parser.add_argument("--ray", default=None, metavar="ADDRESS",
+                        help="the Ray cluster of an RLlib run: 'auto' or HOST:PORT (default: "
+                             "a local cluster started for the run)")
     parser.add_argument("--timesteps", type=int, default=None, help="total env steps")
     parser.add_argument("--n-envs", type=int, default=None, help="parallel envs (processes)")
     parser.add_argument("--seed", type=int, default=None)
@@ -76,6 +101,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         value = getattr(args, name)
         if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if args.tune is not None and args.framework == "sb3":
+        parser.error("--tune sweeps with Ray Tune over RLlib runs: drop --framework sb3")
+    if args.ray is not None and args.framework == "sb3":
+        parser.error("--ray is for RLlib runs (--framework rllib); SB3 runs on this machine")
     return args
 
 
@@ -104,12 +133,19 @@ def apply_overrides(params: dict[str, Any], overrides: list[str]) -> dict[str, A
     return params
 
 
-def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
-    """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` ({} if the
-    file has no entry for it: SB3's defaults); every offered algorithm has its file."""
-    path = HYPERPARAMS_DIR / f"{algo}.yaml"
+def hyperparams_name(framework: str, algo: str) -> str:
+    """The hyperparameter file's name: ``<algo>`` (SB3) or ``rllib_<algo>``."""
+    return algo if framework == "sb3" else f"{framework}_{algo}"
+
+
+def load_hyperparams(algo: str, env_id: str, framework: str = "sb3") -> dict[str, Any]:
+    """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` (RLlib:
+    ``rllib_<algo>.yaml``; {} if the file has no entry for it: the library's defaults);
+    every offered algorithm has its file."""
+    path = HYPERPARAMS_DIR / f"{hyperparams_name(framework, algo)}.yaml"
     if not path.is_file():
-        raise SystemExit(f"{path}: no hyperparameter file for --algo {algo}")
+        raise SystemExit(f"{path}: no hyperparameter file for --algo {algo} "
+                         f"(--framework {framework})")
     table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     return dict(table.get(env_id) or {})
 
@@ -134,6 +170,13 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
             raise SystemExit(f"--resume: no run to resume in {args.output} (no config.yaml)")
         config = read_yaml(saved)
         config.setdefault("checkpoint_every", CHECKPOINT_EVERY)  # runs from before it was kept
+        config.setdefault("framework", "sb3")
+        if args.tune is not None:
+            raise SystemExit(f"--resume: the run in {args.output} keeps its own settings "
+                             f"(a sweep's in its config.yaml): drop --tune")
+        if args.framework is not None and args.framework != config["framework"]:
+            raise SystemExit(f"--resume: the run in {args.output} is a --framework "
+                             f"{config['framework']} run, not {args.framework}")
         if args.checkpoint_every is not None:
             config["checkpoint_every"] = args.checkpoint_every
         return config
@@ -145,10 +188,23 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         raise SystemExit(f"{args.config}: unknown keys {sorted(unknown)}; valid: "
                          f"{sorted(RUN_KEYS)}")
     env_id = args.env or data.get("env", "sdc_gym/HighwayLoopBehavior-v0")
-    algo = args.algo or data.get("algo", "ppo")
-    if algo not in ALGORITHMS:
-        raise SystemExit(f"unknown algo {algo!r}; valid: {list(ALGORITHMS)}")
-    hyper = load_hyperparams(algo, env_id)
+    framework = args.framework or data.get("framework") or ("rllib" if args.tune else "sb3")
+    if framework not in FRAMEWORKS:
+        raise SystemExit(f"unknown framework {framework!r}; valid: {list(FRAMEWORKS)}")
+    if args.tune is not None and framework != "rllib":
+        raise SystemExit(f"--tune sweeps RLlib runs; the config asks for framework "
+                         f"{framework!r}")
+    algorithms = ALGORITHMS if framework == "sb3" else RLLIB_ALGORITHMS
+    sweep = None
+    if args.tune is not None:
+        from training.tune_sweep import read_sweep
+
+        sweep = read_sweep(args.tune)
+    algo = args.algo or (sweep or {}).get("algo") or data.get("algo", "ppo")
+    if algo not in algorithms:
+        raise SystemExit(f"unknown algo {algo!r} for --framework {framework}; valid: "
+                         f"{list(algorithms)}")
+    hyper = load_hyperparams(algo, env_id, framework)
     hyper = apply_overrides(hyper, args.hp)
     n_envs = args.n_envs or hyper.pop("n_envs", None) or data.get("n_envs") or os.cpu_count()
     timesteps = args.timesteps or hyper.pop("timesteps", None) or data.get("timesteps",
@@ -158,12 +214,16 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
     evaluation = {**EVAL_DEFAULTS, **(data.get("eval") or {})}
     if args.eval_every is not None:
         evaluation["every"] = args.eval_every
-    return {"env": env_id, "config": dict(data.get("config") or {}), "algo": algo,
-            "seed": args.seed if args.seed is not None else int(data.get("seed", 0)),
-            "timesteps": int(timesteps), "n_envs": int(n_envs), "hyperparams": hyper,
-            "eval": evaluation,
-            "checkpoint_every": int(args.checkpoint_every or data.get("checkpoint_every",
-                                                                     CHECKPOINT_EVERY))}
+    config = {"env": env_id, "config": dict(data.get("config") or {}),
+              "framework": framework, "algo": algo,
+              "seed": args.seed if args.seed is not None else int(data.get("seed", 0)),
+              "timesteps": int(timesteps), "n_envs": int(n_envs), "hyperparams": hyper,
+              "eval": evaluation,
+              "checkpoint_every": int(args.checkpoint_every or data.get("checkpoint_every",
+                                                                       CHECKPOINT_EVERY))}
+    if sweep is not None:
+        config["tune"] = sweep
+    return config
 
 
 def algorithm_class(name: str) -> type:
@@ -192,24 +252,8 @@ def driving_callback() -> Any:
         def _on_step(self) -> bool:
             for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
                 summary = info.get("summary") if done else None
-                if not summary:
-                    continue
-                incidents = summary.get("incidents", {})
-                for kind, count in incidents.items():
-                    self.logger.record_mean(f"driving/{kind}_per_episode", count)
-                self.logger.record_mean("driving/incidents_per_episode",
-                                        sum(incidents.values()))
-                self.logger.record_mean("driving/success", float(summary.get("is_success",
-                                                                             False)))
-                # Only episodes that complete a lap have lap times (the committed config's
-                # 240 s episodes never do); every episode has its distance.
-                for lap in summary.get("lap_times") or ():
-                    self.logger.record_mean("driving/lap_time_s", lap)
-                if summary.get("distance") is not None:
-                    self.logger.record_mean("driving/distance_m", summary["distance"])
-                if summary.get("mean_speed_mph") is not None:
-                    self.logger.record_mean("driving/mean_speed_mph",
-                                            summary["mean_speed_mph"])
+                for name, value in driving_metrics(summary or {}) if summary else ():
+                    self.logger.record_mean(name, value)
             return True
 
     return DrivingMetricsCallback()
@@ -242,6 +286,8 @@ def main(argv: list[str] | None = None) -> Path:
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:
         handle.write(shlex.join([sys.executable, *(sys.argv if argv is None else
                                                    ["train.py", *argv])]) + "\n")
+    if config["framework"] == "rllib":
+        return train_with_ray(config, args)
 
     algo = algorithm_class(config["algo"])
     vec_env = make_vec_env(config, config["n_envs"], config["seed"])
@@ -289,6 +335,17 @@ def main(argv: list[str] | None = None) -> Path:
     vec_env.close()
     print(f"trained {model.num_timesteps} steps; model: {final}")
     return final
+
+
+def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
+    """An RLlib run, or a Tune sweep of RLlib runs (``training``; needs the ray extra)."""
+    try:
+        from training.rllib_trainer import train_rllib
+        from training.tune_sweep import sweep
+    except ImportError as error:
+        raise SystemExit(f"--framework rllib needs Ray: pip install -e \".[ray]\" "
+                         f"({error})") from None
+    return sweep(config, args) if config.get("tune") else train_rllib(config, args)
 
 
 if __name__ == "__main__":

@@ -22,6 +22,7 @@ written by the driver, as for every backend.
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -38,6 +39,8 @@ from sdc_gym.ray import LOCAL, ray_session
 EpisodeFunction = Callable[[EpisodeSpec, ProgressCallback], dict[str, Any]]
 """``episode(spec, progress) -> result``: :func:`run_episode` (tests inject faults here)."""
 
+ANSI_ESCAPES = re.compile(r"\x1b\[[0-9;]*m")
+"""Ray colours the task's name in its error text; the details are plain text."""
 STARTED = "started"
 PROGRESS = "progress"
 
@@ -127,7 +130,8 @@ class RayBackend:
             result = ray.get(ref)
         except RayTaskError as error:  # the episode raised: its own exception and traceback
             cause = error.cause if isinstance(error.cause, BaseException) else error
-            events.failed(index, failure_reason(cause), str(error))
+            # Ray's text: the task, its pid and node, and the worker's traceback.
+            events.failed(index, failure_reason(cause), ANSI_ESCAPES.sub("", str(error)))
         except ray.exceptions.RayError as error:  # the worker (or its node) died
             events.failed(index, f"the worker died: {failure_reason(error)}",
                           failure_details(error))
