@@ -280,6 +280,8 @@ def main(argv: list[str] | None = None) -> Path:
     torch.set_num_threads(max(args.torch_threads, 1))
     config = run_config(args)
     gym.spec(config["env"])  # a clear error for an unknown id before any process starts
+    if config["framework"] == "rllib":
+        check_rllib_config(config)  # before anything is written or a cluster starts
     args.output.mkdir(parents=True, exist_ok=True)
     if not args.resume:
         atomic_write_text(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
@@ -337,14 +339,24 @@ def main(argv: list[str] | None = None) -> Path:
     return final
 
 
-def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
-    """An RLlib run, or a Tune sweep of RLlib runs (``training``; needs the ray extra)."""
+def check_rllib_config(config: dict[str, Any]) -> None:
+    """A clear error for an unknown RLlib hyperparameter, or for Ray not installed."""
     try:
-        from training.rllib_trainer import train_rllib
-        from training.tune_sweep import sweep
+        from training.rllib_config import check_run_config
+
+        check_run_config(config)
     except ImportError as error:
         raise SystemExit(f"--framework rllib needs Ray: pip install -e \".[ray]\" "
                          f"({error})") from None
+    except ValueError as error:
+        raise SystemExit(str(error)) from None
+
+
+def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
+    """An RLlib run, or a Tune sweep of RLlib runs (:mod:`training`)."""
+    from training.rllib_trainer import train_rllib
+    from training.tune_sweep import sweep
+
     return sweep(config, args) if config.get("tune") else train_rllib(config, args)
 
 

@@ -8,9 +8,10 @@ SB3 policy sits (:mod:`agents.policy_agent`): the layered agent only calls
 ``PATH`` is an RLlib checkpoint folder: a whole algorithm's (``Algorithm.save_to_path``:
 the run folder's ``model/``, ``best_model/``, ``checkpoints/<algo>_<steps>_steps/``) or
 one RLModule's. The module is loaded on the CPU without starting Ray, and a decision is
-one ``forward_inference`` (no exploration): the action distribution's deterministic
-action (the arg-max for ``Discrete``; the mean for ``Box``, clipped to the space, as
-RLlib's module-to-env connector clips).
+one ``forward_inference`` (no exploration): the actions the module returns (DQN: the
+arg-max of its Q-values), else its action distribution's deterministic action (PPO: the
+arg-max for ``Discrete``; the mean for ``Box``), clipped to a ``Box`` as RLlib's
+module-to-env connector clips.
 """
 
 from __future__ import annotations
@@ -61,7 +62,6 @@ class RLlibPolicy:
         self.module = module
         self.observation_space: gym.Space = module.observation_space
         self.action_space: gym.Space = module.action_space
-        self._distribution = module.get_inference_action_dist_cls()
         self._torch = torch
         module.eval()
 
@@ -77,8 +77,12 @@ class RLlibPolicy:
         batch = obs[None] if single else obs
         with self._torch.no_grad():
             output = self.module.forward_inference({"obs": self._torch.from_numpy(batch)})
-            actions = self._distribution.from_logits(
-                output["action_dist_inputs"]).to_deterministic().sample().numpy()
+            if "actions" in output:  # the module chose (DQN)
+                actions = output["actions"].numpy()
+            else:
+                distribution = self.module.get_inference_action_dist_cls()
+                actions = distribution.from_logits(
+                    output["action_dist_inputs"]).to_deterministic().sample().numpy()
         if isinstance(self.action_space, gym.spaces.Box):
             actions = np.clip(actions, self.action_space.low, self.action_space.high)
         return (actions[0] if single else actions), None

@@ -9,6 +9,10 @@ as the SB3 ones do, with the same ``--hp key=value`` overrides. An entry's keys 
   ``fcnet_hiddens``, ``fcnet_activation``, ``vf_share_layers``, ...);
 * ``env_runners``: arguments of ``AlgorithmConfig.env_runners()``
   (``num_envs_per_env_runner``, ``rollout_fragment_length``, ...);
+* ``reporting``: arguments of ``AlgorithmConfig.reporting()``
+  (``min_sample_timesteps_per_iteration``: DQN's iterations sample at least 1000 env steps
+  by default, and checkpoints and evaluations fall between iterations;
+  ``metrics_num_episodes_for_smoothing``, ...);
 * ``n_envs`` and ``timesteps``, the run's defaults (train.py pops them).
 
 ``n_envs`` is the number of env processes, as for SB3: 1 samples in the learner's own
@@ -25,7 +29,7 @@ from typing import Any
 
 ALGORITHMS = ("ppo", "dqn")
 """RLlib algorithms offered by ``train.py --framework rllib``."""
-SECTIONS = ("model", "env_runners")
+SECTIONS = ("model", "env_runners", "reporting")
 """Keys of a hyperparameter entry that are mappings for other parts of the config."""
 
 
@@ -61,14 +65,15 @@ def _keyword_names(cls: type, method: str) -> set[str]:
 
 
 def valid_keys(algo: str) -> dict[str, set[str]]:
-    """The keys a hyperparameter entry of ``algo`` may have: ``"training"`` (top level),
-    ``"model"`` and ``"env_runners"``."""
+    """The keys a hyperparameter entry of ``algo`` may have: ``"training"`` (top level)
+    and those of each of :data:`SECTIONS`."""
     from ray.rllib.core.rl_module.default_model_config import DefaultModelConfig
 
     cls = config_class(algo)
     return {"training": _keyword_names(cls, "training"),
             "model": {field.name for field in dataclasses.fields(DefaultModelConfig)},
-            "env_runners": _keyword_names(cls, "env_runners") - {"num_env_runners"}}
+            "env_runners": _keyword_names(cls, "env_runners") - {"num_env_runners"},
+            "reporting": _keyword_names(cls, "reporting")}
 
 
 def check_hyperparams(algo: str, hyper: dict[str, Any], where: str) -> None:
@@ -100,6 +105,7 @@ def algorithm_config(config: dict[str, Any], hyper: dict[str, Any] | None = None
     hyper = dict(config["hyperparams"] if hyper is None else hyper)
     model = dict(hyper.pop("model", None) or {})
     runners = dict(hyper.pop("env_runners", None) or {})
+    reporting = dict(hyper.pop("reporting", None) or {})
     n_envs = int(config["n_envs"])
     return (config_class(config["algo"])()
             .environment(config["env"], env_config=dict(config["config"]))
@@ -108,5 +114,32 @@ def algorithm_config(config: dict[str, Any], hyper: dict[str, Any] | None = None
             .learners(num_learners=0)
             .rl_module(model_config=model)
             .training(**hyper)
+            .reporting(**reporting)
             .callbacks(DrivingMetricsCallback)
             .debugging(seed=int(config["seed"])))
+
+
+def with_keys(hyper: dict[str, Any], keys: Any, value: Any = None) -> dict[str, Any]:
+    """``hyper`` with each (dotted: ``model.fcnet_hiddens``) key of ``keys`` set to
+    ``value`` (a Tune sweep's search space: placeholders for the checks, domains for Tune)."""
+    hyper = {name: (dict(item) if isinstance(item, dict) else item)
+             for name, item in hyper.items()}
+    for key in keys:
+        *parents, last = key.split(".")
+        node = hyper
+        for part in parents:
+            node[part] = dict(node.get(part) or {})
+            node = node[part]
+        node[last] = value(key) if callable(value) else value
+    return hyper
+
+
+def check_run_config(config: dict[str, Any]) -> None:
+    """``ValueError`` for an unknown hyperparameter of the run (or of its sweep's search
+    space), before any cluster starts."""
+    hyper = config["hyperparams"]
+    where = f"hyperparameters of rllib {config['algo']} for {config['env']}"
+    if config.get("tune"):
+        hyper = with_keys(hyper, config["tune"]["search_space"])
+        where = f"{where} (with the sweep's search space)"
+    check_hyperparams(config["algo"], hyper, where)

@@ -15,7 +15,7 @@ to a temporary folder and renamed, so a checkpoint is whole or absent):
 
 * ``config.yaml``, ``command.txt`` (train.py writes them);
 * ``checkpoints/<algo>_<steps>_steps/`` every ``checkpoint_every`` env steps (for DQN with
-  its replay buffer when ``store_buffer_in_checkpoints``);
+  its replay buffer, ``replay_buffer.pkl``, which RLlib's own checkpoints leave out);
 * ``best_model/`` (best mean reward of the periodic evaluation: ``eval.episodes``
   deterministic episodes in the driver from the held-out ``eval.seed``, with SB3's
   ``evaluate_policy`` on the same env sequence as an SB3 run's ``EvalCallback``) and
@@ -23,10 +23,11 @@ to a temporary folder and renamed, so a checkpoint is whole or absent):
 * ``tensorboard/rllib_<algo>_<n>/``: ``rollout/ep_rew_mean``, ``rollout/ep_len_mean``,
   ``time/fps``, the learner's ``train/`` figures, ``eval/`` and the ``driving/`` metrics,
   against env steps (SB3's names, so both show in one TensorBoard);
-* ``model/`` at the end: ``evaluate.py --agents rllib:RUN/model``.
+* ``model/`` at the end (with the replay buffer, so a longer run can go on from it):
+  ``evaluate.py --agents rllib:RUN/model``.
 
 ``--resume`` restores the newest checkpoint (weights, optimizer, counters, connector
-state) and trains on to the same total of env steps. A local cluster started for the
+state, replay buffer) and trains on to the same total of env steps. A local cluster started for the
 run is shut down at its end, also on Ctrl-C.
 """
 
@@ -34,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import pickle
 import shutil
 import time
 from pathlib import Path
@@ -43,12 +45,15 @@ import numpy as np
 
 from sdc_gym.ray import LOCAL, ray_session
 from training.driving_metrics import PREFIX as DRIVING_PREFIX
-from training.rllib_config import algorithm_config, check_hyperparams
+from training.rllib_config import algorithm_config
 
 MODEL_FOLDER = "model"
 BEST_FOLDER = "best_model"
 CHECKPOINTS_FOLDER = "checkpoints"
 EVALUATIONS_FILE = "evaluations.npz"
+REPLAY_BUFFER_FILE = "replay_buffer.pkl"
+OFF_POLICY = ("dqn",)
+"""Algorithms with a replay buffer: kept in the run's checkpoints and final model."""
 STEPS_KEY = "num_env_steps_sampled_lifetime"
 """The result's count of env steps sampled since the run began (restored on resume)."""
 
@@ -82,15 +87,31 @@ def replace_folder(source: Path, target: Path) -> None:
         shutil.rmtree(old)
 
 
-def save_checkpoint(algo: Any, target: Path) -> Path:
-    """``algo.save_to_path`` into a temporary sibling of ``target``, then renamed."""
+def save_checkpoint(algo: Any, target: Path, replay_buffer: bool = False) -> Path:
+    """``algo.save_to_path`` into a temporary sibling of ``target``, then renamed; with
+    ``replay_buffer``, the off-policy algorithm's buffer too (:data:`REPLAY_BUFFER_FILE`:
+    RLlib's new API stack leaves it out of its checkpoints)."""
     temporary = target.with_name(f".{target.name}.tmp")
     if temporary.exists():
         shutil.rmtree(temporary)
     target.parent.mkdir(parents=True, exist_ok=True)
     algo.save_to_path(str(temporary.resolve()))
+    buffer = getattr(algo, "local_replay_buffer", None)
+    if replay_buffer and buffer is not None:
+        with (temporary / REPLAY_BUFFER_FILE).open("wb") as handle:
+            pickle.dump(buffer.get_state(), handle, protocol=pickle.HIGHEST_PROTOCOL)
     replace_folder(temporary, target)
     return target
+
+
+def restore_checkpoint(algo: Any, source: Path) -> None:
+    """The algorithm's state from ``source``, and its replay buffer when saved there."""
+    algo.restore_from_path(str(source.resolve()))
+    saved = source / REPLAY_BUFFER_FILE
+    buffer = getattr(algo, "local_replay_buffer", None)
+    if saved.is_file() and buffer is not None:
+        with saved.open("rb") as handle:
+            buffer.set_state(pickle.load(handle))
 
 
 def tensorboard_folder(root: Path, algo: str) -> Path:
@@ -193,23 +214,19 @@ def train_rllib(config: dict[str, Any], args: argparse.Namespace) -> Path:
     """
     from torch.utils.tensorboard import SummaryWriter
 
-    try:  # before a cluster starts
-        check_hyperparams(config["algo"], config["hyperparams"],
-                          f"hyperparameters of rllib {config['algo']} for {config['env']}")
-    except ValueError as error:
-        raise SystemExit(str(error)) from None
     output: Path = args.output
     checkpoints = output / CHECKPOINTS_FOLDER
     latest = latest_checkpoint(checkpoints) if args.resume else None
     total = int(config["timesteps"])
     every = int(config["checkpoint_every"])
+    buffered = config["algo"] in OFF_POLICY
     with ray_session(args.ray or LOCAL):
         algo = algorithm_config(config).build_algo()
         evaluation = writer = None
         try:
             steps = 0
             if latest is not None:
-                algo.restore_from_path(str(latest.resolve()))
+                restore_checkpoint(algo, latest)
                 steps = checkpoint_steps(latest)
             evaluation = Evaluation(config, output, resumed_at=steps)
             writer = SummaryWriter(str(tensorboard_folder(output / "tensorboard",
@@ -229,9 +246,9 @@ def train_rllib(config: dict[str, Any], args: argparse.Namespace) -> Path:
                         writer.add_scalar(name, value, steps)
                     if steps // every > before // every or steps >= total:
                         save_checkpoint(algo, checkpoints / checkpoint_name(config["algo"],
-                                                                            steps))
+                                                                            steps), buffered)
                     advance(steps)
-            final = save_checkpoint(algo, output / MODEL_FOLDER)
+            final = save_checkpoint(algo, output / MODEL_FOLDER, buffered)
         finally:
             if writer is not None:
                 writer.close()

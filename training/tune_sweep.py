@@ -33,8 +33,9 @@ measured in env steps (``num_env_steps_sampled_lifetime``).
 
 The run folder: ``config.yaml`` (the run config, with the sweep under ``tune``),
 ``command.txt``, ``tune/sweep/`` (Tune's experiment: per trial its results, TensorBoard
-events and its best checkpoint), ``trials.csv`` (one row per trial: its hyperparameters,
-env steps, last and best metric, whether ASHA stopped it, its error) also printed as a
+events and its best checkpoint), ``trials.csv`` (one row per trial: its id, hyperparameters,
+env steps, iterations, the metric's last and best value, whether ASHA stopped it, its
+error) also printed as a
 table, and ``best_model/`` (the best checkpoint of the best trial) with ``best_model.yaml``
 (that trial's resolved run config, which ``rllib:`` agents read).
 """
@@ -52,7 +53,7 @@ import yaml
 
 from evaluation.files import atomic_write_text
 from sdc_gym.ray import LOCAL, ray_session
-from training.rllib_config import algorithm_config, check_hyperparams, config_class
+from training.rllib_config import algorithm_config, config_class, with_keys
 from training.rllib_trainer import BEST_FOLDER, STEPS_KEY, replace_folder
 
 SWEEP_KEYS = {"algo", "num_samples", "max_concurrent_trials", "metric", "mode", "timesteps",
@@ -123,15 +124,6 @@ def tune_domain(distribution: dict[str, list[Any]]) -> Any:
     return getattr(tune, name)(*arguments)
 
 
-def _set_dotted(params: dict[str, Any], key: str, value: Any) -> None:
-    *parents, last = key.split(".")
-    node = params
-    for part in parents:
-        node[part] = dict(node.get(part) or {})
-        node = node[part]
-    node[last] = value
-
-
 def _get_dotted(params: dict[str, Any] | None, key: str) -> Any:
     """``params["a"]["b"]`` for ``"a.b"``; None where a part is missing."""
     node: Any = params
@@ -143,14 +135,11 @@ def _get_dotted(params: dict[str, Any] | None, key: str) -> Any:
 
 
 def trial_config(config: dict[str, Any], sweep: dict[str, Any]) -> dict[str, Any]:
-    """The run config of each trial: the sweep's n_envs and timesteps, the search space's
-    keys in the hyperparameters as placeholders (for the checks)."""
+    """The run config of each trial: the run's, with the sweep's n_envs and timesteps."""
     trial = {**config, "hyperparams": dict(config["hyperparams"])}
     for key in ("n_envs", "timesteps"):
         if sweep.get(key) is not None:
             trial[key] = sweep[key]
-    for key in sweep["search_space"]:
-        _set_dotted(trial["hyperparams"], key, None)
     return trial
 
 
@@ -162,14 +151,8 @@ def sweep(config: dict[str, Any], args: argparse.Namespace) -> Path:
 
     spec = config["tune"]
     trial = trial_config(config, spec)
-    try:
-        check_hyperparams(trial["algo"], trial["hyperparams"],
-                          f"hyperparameters of the {trial['algo']} sweep")
-    except ValueError as error:
-        raise SystemExit(str(error)) from None
-    hyper = dict(trial["hyperparams"])
-    for key, distribution in spec["search_space"].items():
-        _set_dotted(hyper, key, tune_domain(distribution))
+    space = spec["search_space"]
+    hyper = with_keys(trial["hyperparams"], space, lambda key: tune_domain(space[key]))
     output = args.output.resolve()
     storage = output / "tune"
     timesteps = int(trial["timesteps"])
@@ -219,24 +202,25 @@ def sweep(config: dict[str, Any], args: argparse.Namespace) -> Path:
             shutil.rmtree(temporary)
         shutil.copytree(checkpoint.path, temporary)
         replace_folder(temporary, output / BEST_FOLDER)
-        resolved = {**trial, "hyperparams": {**trial["hyperparams"]}}
-        for key in spec["search_space"]:
-            _set_dotted(resolved["hyperparams"], key, _plain(_get_dotted(best.config,
-                                                                         _config_key(key))))
+        resolved = {**trial, "hyperparams": with_keys(
+            trial["hyperparams"], space,
+            lambda key: _plain(_get_dotted(best.config, _config_key(key))))}
         resolved.pop("tune", None)
         atomic_write_text(output / f"{BEST_FOLDER}.yaml",
                           yaml.safe_dump(resolved, sort_keys=False))
-    print(f"best trial {best.path and Path(best.path).name}: {spec['metric']} "
-          f"{rows_best(rows, best)}; model: {output / BEST_FOLDER}")
+    [row] = [row for row in rows if row["trial"] == trial_id(best)]
+    print(f"best trial {row['trial']} ({', '.join(f'{k} {row[k]}' for k in spec['search_space'])}"
+          f"): best {spec['metric']} {row['best']:.4g}; model: {output / BEST_FOLDER}")
     return output / BEST_FOLDER
 
 
 def _config_key(key: str) -> str:
-    """Where a hyperparameter sits in the trial's config dict: ``model.x`` is the RLModule's
-    ``model_config`` (AlgorithmConfig.to_dict's key), the rest are top-level keys."""
+    """Where a hyperparameter sits in the trial's config dict: ``model.x`` is in the
+    RLModule's model config (``AlgorithmConfig.to_dict``'s ``_model_config``), the rest are
+    top-level keys."""
     head, _, rest = key.partition(".")
     if head == "model":
-        return f"model_config.{rest}"
+        return f"_model_config.{rest}"
     if head == "env_runners":
         return rest
     return key
@@ -264,23 +248,21 @@ def trial_rows(grid: Any, spec: dict[str, Any], timesteps: int) -> list[dict[str
         best = None if history is None or history.empty else (
             float(history.max() if mode == "max" else history.min()))
         steps = int(metrics.get(STEPS_KEY, 0) or 0)
-        row = {"trial": Path(result.path).name if result.path else "",
+        row = {"trial": trial_id(result),
                **{key: _plain(_get_dotted(result.config, _config_key(key)))
                   for key in spec["search_space"]},
                "env_steps": steps, "iterations": int(metrics.get("training_iteration", 0)),
-               f"last {metric}": _metric(metrics, metric), f"best {metric}": best,
+               "last": _metric(metrics, metric), "best": best,
                "stopped_early": result.error is None and steps < timesteps,
                "error": "" if result.error is None else str(result.error).splitlines()[0]}
         rows.append(row)
     return rows
 
 
-def rows_best(rows: list[dict[str, Any]], best: Any) -> Any:
-    name = Path(best.path).name if best.path else ""
-    for row in rows:
-        if row["trial"] == name:
-            return next(value for key, value in row.items() if key.startswith("best "))
-    return None
+def trial_id(result: Any) -> str:
+    """Tune's id of a trial (``4e75b_00001``), or its folder's name without metrics."""
+    reported = (result.metrics or {}).get("trial_id")
+    return str(reported) if reported else (Path(result.path).name if result.path else "")
 
 
 def _metric(metrics: dict[str, Any], metric: str) -> float | None:
@@ -306,9 +288,9 @@ def _print_table(rows: list[dict[str, Any]], metric: str) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    table = Table(title=f"trials ({metric})")
+    table = Table(title=f"trials: last and best {metric}")
     for key in rows[0] if rows else ():
-        table.add_column(key.replace(f" {metric}", ""), overflow="fold")
+        table.add_column(key, overflow="fold")
     for row in rows:
         table.add_row(*("" if value is None else
                         f"{value:.4g}" if isinstance(value, float) else str(value)
