@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import csv
 import json
+import sys
 from pathlib import Path
 
 import gymnasium as gym
@@ -144,3 +145,72 @@ def test_every_backend_reports_each_episode_once_with_progress(cluster, backend)
     # 12 s of driving: 600 steps, a progress report every 100 (the ray backend's arrive
     # through its queue, all before the result is collected or later ignored).
     assert ("progress", 0) in events.log
+
+
+def descendants(pid: int) -> dict[int, str]:
+    """Every process below ``pid`` (from /proc), with its command line."""
+    parents: dict[int, int] = {}
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parents[int(stat.parent.name)] = int(fields[1])
+    found, frontier = {}, [pid]
+    while frontier:
+        parent = frontier.pop()
+        for child, its_parent in parents.items():
+            if its_parent == parent and child not in found:
+                try:
+                    found[child] = (Path("/proc") / str(child) / "cmdline").read_bytes() \
+                        .replace(b"\0", b" ").decode(errors="replace")
+                except OSError:
+                    continue
+                frontier.append(child)
+    return found
+
+
+def test_ctrl_c_stops_the_run_and_shuts_the_local_cluster_down(tmp_path):
+    """evaluate.py --ray with a cluster started on the spot, interrupted while its episodes
+    run: it exits, and no process of its cluster (GCS, raylet, workers) is left."""
+    import os
+    import signal
+    import subprocess
+    import time
+
+    # A shell's background job ignores SIGINT; a terminal's Ctrl-C reaches Python's handler.
+    launcher = ("import signal, sys, runpy; "
+                "signal.signal(signal.SIGINT, signal.default_int_handler); "
+                "sys.argv = ['evaluate.py'] + sys.argv[1:]; "
+                "runpy.run_path('evaluate.py', run_name='__main__')")
+    process = subprocess.Popen(
+        [sys.executable, "-c", launcher, "--agents", "fsm_bold", "--seeds", "0", "1",
+         "--laps", "20", "--ray", "--workers", "2", "--no-plots", "--no-progress",
+         "--output", str(tmp_path / "run")],
+        cwd=Path(__file__).resolve().parents[1], stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        seen: dict[int, str] = {}
+        while time.monotonic() < deadline:
+            seen.update(descendants(process.pid))
+            if sum("ray::_episode_task" in command for command in seen.values()) >= 2:
+                break
+            assert process.poll() is None, process.stderr.read().decode()
+            time.sleep(0.5)
+        else:
+            pytest.fail(f"no episode task started in 120 s: {sorted(seen.values())}")
+        assert any("gcs_server" in command for command in seen.values())
+        assert any("raylet" in command for command in seen.values())
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=60) != 0
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)
+            process.wait()
+    assert "KeyboardInterrupt" in process.stderr.read().decode()
+    time.sleep(1.0)  # the cluster's processes exit with their owner
+    alive = {pid: command for pid, command in seen.items() if Path(f"/proc/{pid}").exists()
+             and "(Z)" not in Path(f"/proc/{pid}/stat").read_text()}
+    assert not alive, f"left running: {alive}"
+    assert not (tmp_path / "run" / "episodes.csv").exists()  # interrupted: no results
