@@ -372,8 +372,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         console = Console(width=260)
 
     started = time.perf_counter()
-    runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
-                        backend=backend)
+    try:
+        runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
+                            backend=backend)
+    except ConnectionError as error:  # --ray ADDRESS with no cluster there
+        raise SystemExit(f"--ray {args.ray}: {error}") from None
     wall = time.perf_counter() - started
     episodes, failures = runs.results, runs.failures
     if not episodes:
@@ -432,8 +435,12 @@ def ray_backend(address: str, workers: int | None) -> Any:
     """The Ray backend for ``--ray`` (a clear error without the optional extra)."""
     try:
         from evaluation.ray_backend import RayBackend
+        from sdc_gym.ray import START_A_CLUSTER, unreachable
     except ImportError as error:
         raise SystemExit(f"--ray needs Ray: pip install -e \".[ray]\" ({error})") from None
+    problem = None if address == LOCAL else unreachable(address)
+    if problem is not None:  # before any folder is made
+        raise SystemExit(f"--ray {address}: {problem}; {START_A_CLUSTER}")
     return RayBackend(address, num_cpus=workers)
 
 

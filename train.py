@@ -357,7 +357,10 @@ def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
     from training.rllib_trainer import train_rllib
     from training.tune_sweep import sweep
 
-    return sweep(config, args) if config.get("tune") else train_rllib(config, args)
+    try:
+        return sweep(config, args) if config.get("tune") else train_rllib(config, args)
+    except ConnectionError as error:  # --ray ADDRESS with no cluster there
+        raise SystemExit(f"--ray {args.ray}: {error}") from None
 
 
 if __name__ == "__main__":

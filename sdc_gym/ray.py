@@ -29,6 +29,7 @@ Needs the optional extra: ``pip install -e ".[ray]"``.
 from __future__ import annotations
 
 import functools
+import socket
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any
@@ -39,6 +40,30 @@ from sdc_gym import ENV_IDS
 
 LOCAL = "local"
 """The ``address`` of :func:`ray_session` that starts a local cluster for the session."""
+
+
+START_A_CLUSTER = ("start one with `ray start --head` (then 'auto' finds it), or run "
+                   "without an address for a local cluster")
+
+
+def unreachable(address: str, timeout_s: float = 5.0) -> str | None:
+    """Why no Ray cluster answers at ``address`` (``"auto"``: the one the last
+    ``ray start`` on this machine recorded, or ``RAY_ADDRESS``), or None when its GCS port
+    accepts a connection."""
+    from ray._private.services import canonicalize_bootstrap_address  # Ray's own lookup
+
+    try:
+        resolved = canonicalize_bootstrap_address(address)
+    except (ValueError, ConnectionError) as error:
+        return f"no Ray cluster at {address!r} ({error})"
+    if resolved is None:
+        return f"no running Ray cluster found for {address!r}"
+    host, _, port = resolved.rpartition(":")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except (OSError, ValueError) as error:
+        return f"no Ray cluster answers at {resolved} (for {address!r}: {error})"
+    return None
 
 
 def make_env(env_id: str, env_config: Mapping[str, Any] | None = None) -> gym.Env:
@@ -68,6 +93,7 @@ def ray_session(address: str = LOCAL, num_cpus: int | None = None,
     connects to a running cluster, which is left running (only this driver disconnects).
     If Ray is already initialised in this process (a test's cluster, a notebook), that one
     is used and left as it is. Yields the cluster's resources (``{"CPU": 2.0, ...}``).
+    ``ConnectionError`` (saying what to do) when no cluster answers at ``address``.
     """
     import ray
 
@@ -84,7 +110,15 @@ def ray_session(address: str = LOCAL, num_cpus: int | None = None,
                 raise ValueError("num_cpus is for a local cluster: a running cluster has "
                                  "its own resources")
             options["address"] = address
-        ray.init(**options)
+            # ray.init retries an absent cluster for minutes: ask it once, quickly, first.
+            problem = unreachable(address)
+            if problem is not None:
+                raise ConnectionError(f"{problem}; {START_A_CLUSTER}")
+        try:
+            ray.init(**options)
+        except ConnectionError as error:
+            raise ConnectionError(f"cannot reach a Ray cluster at {address!r} ({error}); "
+                                  f"{START_A_CLUSTER}") from None
     try:
         register_envs()
         yield dict(ray.cluster_resources())
@@ -93,4 +127,4 @@ def ray_session(address: str = LOCAL, num_cpus: int | None = None,
             ray.shutdown()
 
 
-__all__ = ["LOCAL", "make_env", "ray_session", "register_envs"]
+__all__ = ["LOCAL", "make_env", "ray_session", "register_envs", "unreachable"]

@@ -65,6 +65,23 @@ def test_the_plain_id_fails_in_a_worker_and_the_registered_envs_work(cluster):
     np.testing.assert_array_equal(observation, expected)
 
 
+def test_no_cluster_at_the_address_is_a_quick_clear_error(tmp_path):
+    import socket
+
+    from sdc_gym.ray import unreachable
+
+    with socket.socket() as probe:  # a port of this machine where nothing listens
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    assert "no Ray cluster answers at" in unreachable(f"127.0.0.1:{port}")
+    assert "no Ray cluster at 'nohost'" in unreachable("nohost")
+    with pytest.raises(SystemExit, match=f"--ray 127.0.0.1:{port}: no Ray cluster answers.*"
+                                         "ray start --head"):
+        evaluate.main(["--agents", "lane_keeping", "--ray", f"127.0.0.1:{port}",
+                       "--output", str(tmp_path / "run")])
+    assert not (tmp_path / "run").exists()
+
+
 def read_rows(path):
     with path.open(newline="") as handle:
         return [{key: value for key, value in row.items() if key != "wall_time"}
