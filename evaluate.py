@@ -9,6 +9,7 @@
     python evaluate.py --endurance 50        # 50 laps in ONE episode, driving on after incidents
     python evaluate.py --agent "external:./path_planning" --planner-cwd build \
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
+    python evaluate.py --seeds $(seq 0 999) --ray auto   # Ray tasks on a running cluster
     python evaluate.py compare results/A results/B   # two runs side by side
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
@@ -39,6 +40,12 @@ Written atomically:
                        the last seconds of the ego and nearby cars
     incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
+
+Episodes run in worker processes (``--workers``), or as Ray tasks with ``--ray``: on a
+running cluster (``auto``, ``HOST:PORT``) or on a local one started for the run and shut
+down at its end (docs/ray.md). An episode that raises, or whose worker dies, is reported
+with its seed and reason (printed, and in ``summary.json``'s ``run.failures`` with its
+traceback); the other episodes still run and are written, and the exit status is 1.
 
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
 ``terminate_on_collision`` off, so incidents are counted and the car drives on, and reports
