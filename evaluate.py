@@ -300,7 +300,8 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
 def episode_specs(args: argparse.Namespace, env_id: str,
                   env_config: dict[str, Any]) -> list[EpisodeSpec]:
     """One episode per (agent, seed), with the incident and external planner options."""
-    return [EpisodeSpec(agent, env_id, seed, env_config,
+    return [EpisodeSpec(agent, env_id, seed, (external.external_env_config(env_config)
+                                              if external.is_external(agent) else env_config),
                         agent_options=({external.EXTERNAL_KIND: external.external_options(
                             args, agent, seed)} if external.is_external(agent) else {}),
                         incident_history=args.incident_history,
@@ -380,8 +381,9 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     started = time.perf_counter()
     try:
-        runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
-                            backend=backend)
+        with external.planner_maps(args, probe.road):
+            runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
+                                backend=backend)
     except ConnectionError as error:  # --ray ADDRESS with no cluster there
         raise SystemExit(f"--ray {args.ray}: {error}") from None
     wall = time.perf_counter() - started

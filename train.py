@@ -30,7 +30,11 @@ all, success, mean speed and distance per episode, and lap time from the episode
 complete a lap, which training episodes shorter than a lap never do) and ``model.zip`` at
 the end. With ``--resume`` the newest checkpoint is loaded and training continues to the
 same total of timesteps, checkpointing at the run's ``checkpoint_every``.
-Envs run in ``n_envs`` subprocesses (default: one per CPU core).
+Envs with a native batch (``sdc_gym/HighwayLoopBehavior-v0``, ``sdc_gym/HighwayLoop-v0``)
+run as one batch of ``n_envs`` envs in this process (``sdc_gym.envs.sb3.SB3VecEnv``: no
+subprocesses, one batched policy forward pass per step; env ``i`` is the env seeded
+``seed + i``, as SB3's own vec envs seed it); others, or ``--vectorize subprocess``, in
+``n_envs`` subprocesses (default: one per CPU core).
 """
 
 from __future__ import annotations
@@ -93,6 +97,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="env steps between evaluations (0: none)")
     parser.add_argument("--resume", action="store_true", help="continue the run in --output")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--vectorize", choices=("batch", "subprocess"), default="batch",
+                        help="batch: the env's native batch in this process (where it has "
+                             "one); subprocess: one process per env")
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="torch threads in the learner (small MLPs: 1 is fastest, and "
                              "the env processes keep the other cores)")
@@ -232,11 +239,18 @@ def algorithm_class(name: str) -> type:
     return getattr(stable_baselines3, name.upper())
 
 
-def make_vec_env(config: dict[str, Any], n_envs: int, seed: int) -> Any:
+def make_vec_env(config: dict[str, Any], n_envs: int, seed: int,
+                 vectorize: str = "batch") -> Any:
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv, VecMonitor
+
+    from sdc_gym.envs.sb3 import VECTOR_ENVS, SB3VecEnv
 
     env_id = config["env"]
+    if vectorize == "batch" and env_id in VECTOR_ENVS:
+        batch = SB3VecEnv(env_id, n_envs, config["config"])
+        batch.seed(seed)
+        return VecMonitor(batch)
     if env_id.startswith("sdc_gym/"):  # subprocesses import the package that registers it
         env_id = f"sdc_gym:{env_id}"
     return sb3_make_vec_env(env_id, n_envs=n_envs, seed=seed,
@@ -292,7 +306,7 @@ def main(argv: list[str] | None = None) -> Path:
         return train_with_ray(config, args)
 
     algo = algorithm_class(config["algo"])
-    vec_env = make_vec_env(config, config["n_envs"], config["seed"])
+    vec_env = make_vec_env(config, config["n_envs"], config["seed"], args.vectorize)
     checkpoints = args.output / "checkpoints"
     latest = latest_checkpoint(checkpoints) if args.resume else None
     off_policy = config["algo"] in ("dqn", "sac")
@@ -316,7 +330,7 @@ def main(argv: list[str] | None = None) -> Path:
     if evaluation["every"]:
         # Evaluation runs in this process; SB3 warns that its vec env class differs.
         warnings.filterwarnings("ignore", message="Training and eval env are not of the same")
-        eval_env = make_vec_env(config, 1, int(evaluation["seed"]))
+        eval_env = make_vec_env(config, 1, int(evaluation["seed"]), args.vectorize)
         callbacks.append(EvalCallback(
             eval_env, n_eval_episodes=int(evaluation["episodes"]),
             eval_freq=max(int(evaluation["every"]) // config["n_envs"], 1),

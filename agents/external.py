@@ -22,6 +22,7 @@ Options (keyword arguments of :func:`external_agent`, ``evaluate.py`` flags):
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import hashlib
 import re
@@ -36,6 +37,7 @@ from agents.protocol import EpisodeAborted
 from sdc_gym.bridge import (
     BridgeError,
     InvalidPath,
+    PlannerMap,
     PlannerOptions,
     PlannerSession,
     lockstep_config,
@@ -140,15 +142,18 @@ def add_external_arguments(parser: argparse.ArgumentParser) -> None:
     group = parser.add_argument_group(
         "external planners (--agent 'external:COMMAND', a planner for the original "
         "simulator; {port} in COMMAND gets a free port)")
-    group.add_argument("--planner-cwd", default=None, metavar="DIR",
-                       help="the planner's working directory (default: the current one)")
+    group.add_argument("--planner-cwd", nargs="+", default=None, metavar="DIR",
+                       help="the planner's working directory (default: the current one); "
+                            "one for every external agent, or one per external agent in "
+                            "the order of --agents")
     group.add_argument("--planner-port", type=int, default=None, metavar="PORT",
                        help="the port it listens on (default: a free one for a {port} "
                             "argument, else 4567 like the original)")
     group.add_argument("--planner-map", default=None, metavar="PATH",
-                       help="export the env's map in the original format to PATH, relative "
-                            "to the working directory, before each episode (e.g. "
-                            "../data/highway_map.csv; a different file there is kept as .orig)")
+                       help="put the env's map in the original format at PATH, relative "
+                            "to the working directory, for the run (e.g. "
+                            "../data/highway_map.csv); the planner's own file is rewritten "
+                            "only if its numbers differ, and restored after the run")
     group.add_argument("--reply-latency", type=int, default=None, metavar="FRAMES",
                        help="the planner's reply takes effect FRAMES physics frames (0.02 s) "
                             "after its telemetry, which goes out every FRAMES frames (the "
@@ -169,8 +174,15 @@ def check_external_arguments(parser: argparse.ArgumentParser, args: argparse.Nam
             parser.error(f"--{flag.replace('_', '-')} must be > 0 s, got {getattr(args, flag)}")
     if args.planner_port is not None and not 0 < args.planner_port < 65536:
         parser.error(f"--planner-port must be in 1..65535, got {args.planner_port}")
-    if args.planner_cwd is not None and not Path(args.planner_cwd).expanduser().is_dir():
-        parser.error(f"--planner-cwd {args.planner_cwd}: no such folder")
+    for folder in args.planner_cwd or ():
+        if not Path(folder).expanduser().is_dir():
+            parser.error(f"--planner-cwd {folder}: no such folder")
+    externals = [agent for agent in (args.agents or ()) if is_external(agent)]
+    cwds = args.planner_cwd or []
+    if len(cwds) > 1 and len(cwds) != len(externals):
+        parser.error(f"--planner-cwd got {len(cwds)} folders for {len(externals)} external "
+                     "agent(s): give one for all, or one per external agent in the order of "
+                     "--agents")
 
 
 def is_external(agent: str) -> bool:
@@ -183,15 +195,30 @@ def apply_reply_latency(args: argparse.Namespace, env_config: dict[str, Any]) ->
         env_config.update(lockstep_config(args.reply_latency))
 
 
+def planner_cwd(args: argparse.Namespace, agent: str) -> str | None:
+    """The working directory of external ``agent``: ``--planner-cwd``'s one folder, or
+    the one in the position of ``agent`` among the external agents."""
+    cwds = args.planner_cwd or []
+    if not cwds:
+        return None
+    if len(cwds) == 1:
+        return str(Path(cwds[0]).expanduser())
+    externals = [name for name in args.agents if is_external(name)]
+    return str(Path(cwds[externals.index(agent)]).expanduser())
+
+
 def external_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
     """The ``external`` options of one episode: the flags, and its log in the run folder."""
+    cwd = planner_cwd(args, agent)
     # A readable file name from the command's words without their folders, made unique
-    # by the spec's hash (commands can be long and differ only in their folders).
+    # by the hash of the spec and its folder (commands can be long and differ only in
+    # their folders; one command may run in two folders).
     words = " ".join(Path(word).name or word for word in agent.partition(":")[2].split())
     slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", words).strip("_.")[:60]
-    slug = f"{slug}_{hashlib.sha1(agent.encode()).hexdigest()[:8]}"
+    key = f"{agent}\n{cwd}".encode()
+    slug = f"{slug}_{hashlib.sha1(key).hexdigest()[:8]}"
     return {
-        "cwd": str(Path(args.planner_cwd).expanduser()) if args.planner_cwd else None,
+        "cwd": cwd,
         "port": args.planner_port,
         "map_export": args.planner_map,
         "startup_timeout": args.planner_startup,
@@ -206,3 +233,34 @@ def fixed_port_workers(args: argparse.Namespace, agents: list[str], workers: int
     fixed = [agent for agent in agents if is_external(agent)
              and ("{port}" not in agent or args.planner_port is not None)]
     return 1 if fixed and workers > 1 else workers
+
+
+EXTERNAL_PATH_POINTS: Final = 500
+"""Points an external planner may send (10 s of path): the original takes paths of any
+length, and some planners send more than the env's default of 50."""
+
+
+def external_env_config(env_config: dict[str, Any]) -> dict[str, Any]:
+    """The env config for an external planner, where the config does not say otherwise:
+    like the original, a collision is counted and the car drives on
+    (``terminate_on_collision`` off), and paths of up to :data:`EXTERNAL_PATH_POINTS`
+    points are taken."""
+    return {"terminate_on_collision": False, "path_points": EXTERNAL_PATH_POINTS,
+            **env_config}
+
+
+def planner_maps(args: argparse.Namespace, road: Any) -> contextlib.ExitStack:
+    """The env's map in every external agent's ``--planner-map`` file for the whole run,
+    each planner's own file put back at the end (:class:`~sdc_gym.bridge.PlannerMap`)."""
+    stack = contextlib.ExitStack()
+    if args.planner_map is None or road is None:
+        return stack
+    folders = {planner_cwd(args, agent) or "." for agent in args.agents if is_external(agent)}
+    try:
+        for folder in sorted(folders):
+            stack.enter_context(PlannerMap(road, Path(folder) / Path(args.planner_map)
+                                           .expanduser()))
+    except BaseException:
+        stack.close()
+        raise
+    return stack

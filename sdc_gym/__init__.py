@@ -19,6 +19,12 @@ _ENVIRONMENTS = {
     "sdc_gym/HighwayLoopBehavior-v0": "sdc_gym.envs.highway_behavior:HighwayLoopBehaviorEnv",
     "sdc_gym/TrackLoopBehavior-v0": "sdc_gym.envs.track_behavior:TrackLoopBehaviorEnv",
 }
+# Natively batched vector envs: gym.make_vec(id, num_envs=E,
+# vectorization_mode="vector_entry_point") steps E envs as one batch of arrays.
+_VECTOR_ENTRY_POINTS = {
+    "sdc_gym/HighwayLoop-v0": "sdc_gym.envs.highway_vector:make_highway_vector_env",
+    "sdc_gym/HighwayLoopBehavior-v0": "sdc_gym.envs.highway_vector:make_behavior_vector_env",
+}
 
 ENV_IDS: tuple[str, ...] = tuple(_ENVIRONMENTS)
 """Every env id the package registers (``sdc_gym.ray.register_envs`` registers them with
@@ -26,6 +32,7 @@ Ray too)."""
 
 for _env_id, _entry_point in _ENVIRONMENTS.items():
     if _env_id not in registry:
-        register(id=_env_id, entry_point=_entry_point)
+        register(id=_env_id, entry_point=_entry_point,
+                 vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id))
 
 __all__ = ["ENV_IDS", "__version__"]

@@ -99,7 +99,9 @@ def test_a_lap_through_the_socket_is_the_in_process_planners_lap(tmp_path):
     assert [report["time"] for report in reports] == [
         entry["time"] for entry in in_process["incident_log"]]
     for report in reports:  # the history ends with the step the incident happened in
-        assert report["time"] - 0.06 < report["history"]["time"][-1] >= report["time"]
+        # (>= up to the rounding of times summed step by step)
+        last = report["history"]["time"][-1]
+        assert report["time"] - 0.06 < last and last >= report["time"] - 1e-9
     assert process_gone(via_socket["planner_pid"])
     assert "Listening to port" in (tmp_path / "planner.log").read_text()
 
@@ -107,12 +109,14 @@ def test_a_lap_through_the_socket_is_the_in_process_planners_lap(tmp_path):
 def test_a_full_lap_of_the_highway_matches_the_in_process_lane_keeping_agent(tmp_path):
     """One lap of the default 6.9 km highway (5 frames per exchange, ~3,500 exchanges):
     the socket planner, reading our exported map and the 7-digit telemetry, has the
-    in-process agent's incidents and lap time."""
-    config = dict(lockstep_config(5), max_duration=1000.0)
+    in-process agent's incidents and lap time. The agent works in the env's exact Frenet
+    frame, so its telemetry twin asks for it (``frenet: exact``)."""
+    config = dict(lockstep_config(5), max_duration=1000.0, frenet="exact")
     in_process = run("lane_keeping", config, seed=0)
     via_socket = run(external("--map", "data/highway_map.csv"), config, seed=0,
                      cwd=str(tmp_path), map_export="data/highway_map.csv")
-    assert (tmp_path / "data" / "highway_map.csv").is_file()
+    # The planner read the map (it drove the lap); the folder is left as found: no file.
+    assert not (tmp_path / "data" / "highway_map.csv").exists()
     for result in (in_process, via_socket):
         assert result["termination_reason"] == "laps_completed" and result["laps"] == 1
     assert via_socket["incidents"] == in_process["incidents"]
@@ -271,3 +275,51 @@ def test_no_planner_outlives_a_parent_killed_without_warning(tmp_path):
     finally:
         parent.kill()
         parent.stdout.close()
+
+
+def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_path):
+    """The same planner command in two folders (--planner-cwd per external agent): each
+    reads the env's map from its own folder; a folder whose file holds the same numbers
+    (printed differently) is not touched, one with another map gets the env's for the
+    run and its own back after; the two logs do not overwrite each other."""
+    from sdc_gym.bridge.map_file import map_text
+    from sdc_gym.road.builtin_highways import get_highway_map
+
+    same, other = tmp_path / "same", tmp_path / "other"
+    same.mkdir()
+    other.mkdir()
+    oval = get_highway_map("oval")
+    (same / "highway_map.csv").write_text(  # the oval, with more digits and commas
+        "\n".join(",".join(f"{value:.10f}" for value in row) for row in oval.waypoints))
+    (other / "highway_map.csv").write_text(map_text(get_highway_map("default")))
+    before = {folder: (folder / "highway_map.csv").read_bytes() for folder in (same, other)}
+    stamp = (same / "highway_map.csv").stat().st_mtime_ns
+    planner = external("--map", "highway_map.csv")
+    planner_b = external("--map", "./highway_map.csv")  # the same planner, named apart
+    output = tmp_path / "run"
+    result = evaluate.main(["--agents", planner, planner_b, "--config",
+                            str(Path(evaluate.__file__).parent / "configs/highway_oval.yaml"),
+                            "--planner-cwd", str(same), str(other), "--planner-map",
+                            "highway_map.csv", "--reply-latency", "5", "--seeds", "1",
+                            "--no-plots", "--no-progress", "--workers", "1",
+                            "--output", str(output)])
+    rows = {row["agent"]: row for row in result["rows"]}
+    assert rows[planner]["laps"] == rows[planner_b]["laps"] == 1  # both drove the oval
+    assert rows[planner]["mean_lap_time"] == pytest.approx(rows[planner_b]["mean_lap_time"])
+    for folder in (same, other):
+        assert (folder / "highway_map.csv").read_bytes() == before[folder]
+        assert sorted(path.name for path in folder.iterdir()) == ["highway_map.csv"]
+    assert (same / "highway_map.csv").stat().st_mtime_ns == stamp  # never rewritten
+    logs = sorted(path.name for path in (output / "planner_logs").iterdir())
+    assert len(logs) == 2 and logs[0] != logs[1]
+    with pytest.raises(SystemExit):  # two folders for one external agent
+        evaluate.main(["--agents", planner, "--planner-cwd", str(same), str(other),
+                       "--output", str(output)])
+
+
+def test_external_planners_drive_on_after_a_collision_unless_configured():
+    from agents.external import EXTERNAL_PATH_POINTS, external_env_config
+
+    assert external_env_config({}) == {"terminate_on_collision": False,
+                                       "path_points": EXTERNAL_PATH_POINTS}
+    assert external_env_config({"terminate_on_collision": True})["terminate_on_collision"]

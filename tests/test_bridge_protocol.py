@@ -37,11 +37,12 @@ def test_telemetry_frame_is_the_originals_flat_object_with_7_significant_digits(
     assert encode_telemetry(START) == (
         '42["telemetry",{"x":909.48,"y":1128.67,"yaw":0,"speed":0,"s":124.8336,'
         '"d":6.164833,"previous_path_x":[],"previous_path_y":[],"end_path_s":0,'
-        '"end_path_d":0,"sensor_fusion":[[0,1000.5,1128.7,10.25,-0,200.1235,6]]}]')
+        '"end_path_d":0,"sensor_fusion":[[0,1000.5,1128.7,10.25,0,200.1235,6]]}]')
     message = dict(START, previous_path_x=[1.0 / 3.0, 1234567.89],
                    previous_path_y=[2e-7, -5.5])
     text = encode_telemetry(message)
-    assert '"previous_path_x":[0.3333333,1234568],"previous_path_y":[2e-07,-5.5]' in text
+    # C#'s float.ToString(): an upper-case exponent, no sign on a zero.
+    assert '"previous_path_x":[0.3333333,1234568],"previous_path_y":[2E-07,-5.5]' in text
 
 
 def test_env_telemetry_survives_the_templates_hasData_and_json():
@@ -156,3 +157,24 @@ def test_export_command_keeps_a_planners_own_map_and_skips_identical_writes(tmp_
     with pytest.raises(SystemExit):
         export_main(["--map", "nowhere", "--output", str(data)])
     assert "neither a built-in" in capsys.readouterr().err
+
+
+def test_planner_map_leaves_the_planners_file_as_it_found_it(tmp_path):
+    from sdc_gym.bridge import PlannerMap
+
+    oval = get_highway_map("oval")
+    target = tmp_path / "data" / "highway_map.csv"
+    with PlannerMap(oval, target) as path:  # no file: written, then removed
+        assert load_highway_map(path).waypoints.shape == oval.waypoints.shape
+    assert not target.exists()
+    own = "784.6001 1135.571 0 -0.02359831 -0.9997216\n" * 4
+    target.write_text(own)
+    with PlannerMap(oval, target):  # another map: replaced for the block, then restored
+        assert target.read_text() != own
+    assert target.read_text() == own
+    same = "\n".join(" ".join(f"{value:.9e}" for value in row) for row in oval.waypoints)
+    target.write_text(same)
+    stamp = target.stat().st_mtime_ns
+    with PlannerMap(oval, target):  # the same numbers, printed otherwise: untouched
+        pass
+    assert target.read_text() == same and target.stat().st_mtime_ns == stamp

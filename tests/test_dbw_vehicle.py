@@ -22,8 +22,12 @@ from sdc_gym.vehicle import (
 )
 from sdc_gym.vehicle.manual_driver import braking_distance
 
-# Physics off: no drag, rolling resistance or creep (for closed-form kinematics).
-NO_RESISTANCE = {"drag_coefficient": 0.0, "rolling_resistance": 0.0, "creep_hold_torque": 0.0}
+# Physics off: no drag, rolling resistance, creep or coming to rest (closed-form kinematics).
+NO_RESISTANCE = {"drag_coefficient": 0.0, "rolling_resistance": 0.0, "creep_hold_torque": 0.0,
+                 "linear_drag": 0.0, "rest_speed": 0.0}
+# An automatic creeping at idle, held by 400 N m (the sim preset before issue 19).
+CREEPING = {"creep_hold_torque": 400.0, "rolling_resistance": 0.015, "drag_coefficient": 0.40,
+            "linear_drag": 0.0, "rest_speed": 0.0}
 
 
 def run(car: DBWVehicle, seconds: float, throttle: float, brake: float, steer: float):
@@ -61,22 +65,84 @@ def test_unknown_preset_and_bad_field_are_clear_errors():
 
 
 def test_creep_is_derived_from_the_holding_torque():
-    for params, hold in ((SIM_VEHICLE, 400.0), (SITE_VEHICLE, 700.0)):
+    for params, hold in ((SITE_VEHICLE, 700.0), (SIM_VEHICLE.replace(**CREEPING), 400.0)):
         net_at_rest = params.creep_force_at_rest - params.rolling_force
         assert net_at_rest * params.wheel_radius == pytest.approx(hold)
+    # A holding torque of 0 is no creep at all, not a creep that only cancels rolling.
+    no_creep = SITE_VEHICLE.replace(creep_hold_torque=0.0)
+    assert no_creep.creep_force_at_rest == 0.0 and no_creep.creep_force(0.5) == 0.0
+
+
+def test_sim_preset_is_the_original_unity_car():
+    """Known answers from the original's Car.prefab (docs/track_vehicle.md): 2000 N m over
+    four wheels of 0.335 / 0.37 m, rigid-body drag 0.1 /s on 1000 kg plus wheel damping
+    0.25 N m s/rad, no creep; the steering ratio and lock the original reports."""
+    p = SIM_VEHICLE
+    assert p.max_drive_force == pytest.approx(500.0 * (2 / 0.335 + 2 / 0.37)) == (
+        pytest.approx(5687.78, abs=0.01))
+    assert math.isinf(p.max_drive_power) and p.engine_force(50.0) == p.max_drive_force
+    assert p.linear_drag == pytest.approx(100.0 + 0.25 * (2 / 0.335**2 + 2 / 0.37**2))
+    assert p.linear_drag == pytest.approx(108.108, abs=1e-3)
+    assert (p.drag_coefficient, p.rolling_resistance, p.creep_hold_torque) == (0.0, 0.0, 0.0)
+    assert p.resistance_force(11.0) == pytest.approx(11.0 * 108.108, abs=0.01)
+    assert p.road_wheel_ratio == pytest.approx(18.3345, abs=2e-4)  # 8.2 / 0.447241
+    assert p.steering_wheel_lock == 8.2
+    assert p.max_road_wheel_angle == pytest.approx(0.447241, abs=1e-9)
+    # The controllers are still told the launch file's figures.
+    assert (p.steer_ratio, p.max_steer_angle) == (14.8, 8.0)
+    assert (SITE_VEHICLE.road_wheel_ratio, SITE_VEHICLE.steering_wheel_lock) == (14.8, 8.0)
 
 
 # ---------------------------------------------------------------------- longitudinal
 def test_constant_throttle_terminal_speed_force_limited():
-    """Sim, throttle 0.08 below the power crossover: 0.08 F_max = c v^2 + F_roll."""
-    car = DBWVehicle(SIM_VEHICLE)
+    """Site, throttle 0.08 below the power crossover: 0.08 F_max = c v^2 + F_roll."""
+    p = SITE_VEHICLE
+    car = DBWVehicle(p)
     car.reset(0.0, 0.0, 0.0)
-    p = SIM_VEHICLE
     expected = math.sqrt((0.08 * p.max_drive_force - p.rolling_force) / p.drag_coefficient)
     assert expected < p.max_drive_power / p.max_drive_force  # really the force-limited regime
     state = run(car, 600.0, 0.08, 0.0, 0.0)[-1]
     assert state.speed == pytest.approx(expected, rel=5e-3)
     assert abs(state.acceleration) < 1e-3
+
+
+def test_linear_drag_speed_is_the_exact_euler_recursion_to_u_f_over_c():
+    """Sim, constant throttle u: v_{n+1} = v_n (1 - c dt / m) + u F dt / m from rest, so
+    v_n = (u F / c) (1 - (1 - c dt / m)^n): terminal speed u F / c (11.05 m/s at 0.21)."""
+    p = SIM_VEHICLE
+    u, m, c, force = 0.21, p.total_mass, p.linear_drag, p.max_drive_force
+    car = DBWVehicle(p)
+    car.reset(0.0, 0.0, 0.0)
+    states = run(car, 120.0, u, 0.0, 0.0)
+    terminal = u * force / c
+    assert terminal == pytest.approx(11.049, abs=1e-3)
+    for n in (1, 10, 500, 6000):
+        expected = terminal * (1.0 - (1.0 - c * PHYSICS_DT / m) ** n)
+        assert states[n - 1].speed == pytest.approx(expected, rel=1e-9)
+    assert states[-1].speed == pytest.approx(terminal, rel=1e-4)
+
+
+def test_sim_car_coasts_on_linear_drag_and_comes_to_rest_below_rest_speed():
+    """No pedals from 5 m/s: v_n = 5 (1 - c dt / m)^n while at or above 0.1 m/s, then at
+    rest for good (no creep pushes it on); the first step below 0.1 m/s ends at 0."""
+    p = SIM_VEHICLE
+    keep = 1.0 - p.linear_drag * PHYSICS_DT / p.total_mass
+    car = DBWVehicle(p)
+    car.reset(0.0, 0.0, 0.0, speed=5.0)
+    states = run(car, 60.0, 0.0, 0.0, 0.0)
+    n_rest = math.ceil(math.log(0.1 / 5.0) / math.log(keep))  # first step below 0.1
+    assert states[n_rest - 2].speed == pytest.approx(5.0 * keep ** (n_rest - 1), rel=1e-9)
+    assert states[n_rest - 2].speed >= 0.1 and states[n_rest - 1].speed == 0.0
+    assert all(s.speed == 0.0 for s in states[n_rest - 1:])
+    assert states[-1].x == states[n_rest - 1].x  # parked, with no brake at all
+    # Coasting distance: the geometric series of the trapezoid steps (the last one to
+    # the speed it would have had), about m (5 - 0.1) / c = 49 m.
+    expected = 0.5 * PHYSICS_DT * 5.0 * (1.0 + keep) * (1.0 - keep**n_rest) / (1.0 - keep)
+    assert states[-1].x == pytest.approx(expected, rel=1e-9)
+    assert expected == pytest.approx(4.9 * p.total_mass / p.linear_drag, rel=1e-3)
+    # With any drive force the car keeps rolling below rest_speed.
+    car.reset(0.0, 0.0, 0.0, speed=0.05)
+    assert car.step(0.001, 0.0, 0.0).speed > 0.0
 
 
 def test_full_throttle_terminal_speed_power_limited():
@@ -118,7 +184,8 @@ def test_brake_never_reverses_the_car():
     assert states[-1].speed == 0.0
 
 
-@pytest.mark.parametrize(("params", "hold"), [(SIM_VEHICLE, 400.0), (SITE_VEHICLE, 700.0)])
+@pytest.mark.parametrize(("params", "hold"), [(SIM_VEHICLE.replace(**CREEPING), 400.0),
+                                             (SITE_VEHICLE, 700.0)])
 def test_brake_at_the_holding_torque_holds_and_less_creeps(params, hold):
     car = DBWVehicle(params)
     car.reset(5.0, 5.0, 1.0, brake_torque=hold)
@@ -130,9 +197,20 @@ def test_brake_at_the_holding_torque_holds_and_less_creeps(params, hold):
     assert crept[-1].x > 6.0
 
 
+def test_the_sim_car_stays_at_rest_without_any_pedal():
+    """The original's car has no idle creep: zero throttle and zero brake hold it."""
+    car = DBWVehicle(SIM_VEHICLE)
+    car.reset(5.0, 5.0, 1.0)
+    assert all(s.speed == 0.0 and (s.x, s.y) == (5.0, 5.0)
+               for s in run(car, 60.0, 0.0, 0.0, 0.0))
+    # Any throttle pulls away at once: u F / m in the first step (no static friction).
+    assert car.step(0.1, 0.0, 0.0).speed == pytest.approx(
+        0.1 * SIM_VEHICLE.max_drive_force / 1080.0 * PHYSICS_DT)
+
+
 def test_creep_speed_against_a_brake_has_a_closed_form():
     """Moving: creep0 (1 - v / v_c) = brake / r + F_roll (drag off)."""
-    params = SIM_VEHICLE.replace(drag_coefficient=0.0)
+    params = SITE_VEHICLE.replace(drag_coefficient=0.0)
     brake = 300.0
     expected = params.creep_speed * (
         1.0 - (brake / params.wheel_radius + params.rolling_force) / params.creep_force_at_rest)
@@ -171,7 +249,7 @@ def test_fixed_wheel_angle_drives_a_circle_of_wheel_base_over_tan_delta(steering
     x = np.array([s.x for s in states])
     y = np.array([s.y for s in states])
     _, _, radius = fit_circle(x, y)
-    expected = SIM_VEHICLE.wheel_base / math.tan(abs(steering) / SIM_VEHICLE.steer_ratio)
+    expected = SIM_VEHICLE.wheel_base / math.tan(abs(steering) / SIM_VEHICLE.road_wheel_ratio)
     assert radius == pytest.approx(expected, rel=5e-3)
     last = states[-1]
     assert abs(last.yaw_rate) == pytest.approx(last.speed / expected, rel=5e-3)
@@ -179,12 +257,20 @@ def test_fixed_wheel_angle_drives_a_circle_of_wheel_base_over_tan_delta(steering
     assert last.lateral_acceleration == pytest.approx(last.speed * last.yaw_rate)
 
 
-def test_steering_is_clamped_to_the_max_wheel_angle():
+def test_steering_answers_as_the_original_reports_and_is_clamped_at_its_lock():
+    """CarND-Capstone issues #110/#111: the original's steering report is the command
+    divided by ~18.33, at most 0.447241 rad (reached at 8.2 rad)."""
     car = DBWVehicle(SIM_VEHICLE)
     car.reset(0.0, 0.0, 0.0, speed=5.0)
-    assert car.step(0.0, 0.0, 100.0).steering_wheel_angle == 8.0
-    assert car.state.road_wheel_angle == pytest.approx(8.0 / 14.8)
-    assert car.step(0.0, 0.0, -math.inf).steering_wheel_angle == -8.0
+    for command in (0.5, 2.0, -4.0, 8.0):
+        wheel = car.step(0.0, 0.0, command).road_wheel_angle
+        assert command / wheel == pytest.approx(18.3345, abs=2e-4)
+    assert car.step(0.0, 0.0, 100.0).steering_wheel_angle == 8.2
+    assert car.state.road_wheel_angle == pytest.approx(0.447241, abs=1e-9)
+    assert car.step(0.0, 0.0, -math.inf).steering_wheel_angle == -8.2
+    site = DBWVehicle(SITE_VEHICLE.replace(steering_time_constant=0.0))
+    site.reset(0.0, 0.0, 0.0, speed=5.0)
+    assert site.step(0.0, 0.0, 100.0).steering_wheel_angle == 8.0
     with pytest.raises(ValueError, match="NaN"):
         car.step(math.nan, 0.0, 0.0)
 
@@ -338,3 +424,18 @@ def test_parameters_are_a_frozen_dataclass_with_replace():
     changed = SIM_VEHICLE.replace(wheel_base=2.5)
     assert isinstance(changed, VehicleParameters)
     assert changed.wheel_base == 2.5 and SIM_VEHICLE.wheel_base == 3.0
+    plain = SIM_VEHICLE.replace(response_steer_ratio=None, steering_lock=None)
+    assert (plain.road_wheel_ratio, plain.steering_wheel_lock) == (14.8, 8.0)
+
+
+@pytest.mark.parametrize(("field", "value", "message"), [
+    ("response_steer_ratio", 0.0, "response_steer_ratio must be None or a finite number > 0"),
+    ("steering_lock", math.inf, "steering_lock must be None or a finite number > 0"),
+    ("linear_drag", -1.0, "linear_drag must be a finite number >= 0"),
+    ("rest_speed", True, "rest_speed must be a finite number >= 0"),
+    ("max_drive_power", 0.0, "max_drive_power must be a number > 0"),
+    ("max_drive_force", "4000", "max_drive_force must be a finite number > 0"),
+])
+def test_new_fields_are_validated(field, value, message):
+    with pytest.raises(ValueError, match=message):
+        SIM_VEHICLE.replace(**{field: value})

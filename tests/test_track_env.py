@@ -95,7 +95,10 @@ def test_spaces_bounds_and_vehicle_preset_follow_the_track():
     assert sim.action_space.high[1] == pytest.approx(1080.0 * 9.81 * 0.335, rel=1e-6)
     assert site.action_space.high[1] == pytest.approx(
         (1736.35 + 13.5 * 2.858) * 9.81 * 0.2413, rel=1e-6)
-    assert sim.action_space.high[2] == 8.0 and sim.action_space.low[2] == -8.0
+    # Steering: the car's lock (8.2 rad for the original's car, 8 rad for the site car).
+    assert sim.action_space.high[2] == np.float32(8.2) and sim.action_space.low[2] == (
+        np.float32(-8.2))
+    assert site.action_space.high[2] == 8.0 and site.action_space.low[2] == -8.0
     assert all(space.dtype in (np.float32, np.int64) for space in sim.observation_space.values())
     lagless = make(track="site", vehicle="sim", vehicle_overrides={"drag_coefficient": 0.0})
     assert lagless.unwrapped.params.drag_coefficient == 0.0
@@ -161,7 +164,7 @@ def test_config_errors_name_the_key_and_the_valid_choices():
 @pytest.mark.parametrize(("action", "message"), [
     (act(float("nan")), r"action\[0\] throttle = nan is outside its valid range \[0, 1\]"),
     (act(0.0, 5000.0), r"action\[1\] brake_torque = 5000.0 .*\[0, 3549.\d+\] N m"),
-    (act(0.0, 0.0, -9.0), r"action\[2\] steering_wheel_angle = -9.0 .*\[-8, 8\] rad"),
+    (act(0.0, 0.0, -9.0), r"action\[2\] steering_wheel_angle = -9.0 .*\[-8.2, 8.2\] rad"),
     ([0.1, 0.0], r"shape \(3,\)"),
     (["a", 0.0, 0.0], "must be 3 numbers"),
 ])
@@ -433,32 +436,41 @@ def test_track_metrics_count_every_pass_of_a_line_across_the_loop_end_in_any_chu
 # ------------------------------------------------------------------ review fixes
 def test_velocity_bound_is_the_cars_top_speed_and_start_speed_is_checked():
     from sdc_gym.envs.track_loop import top_speed
-    from sdc_gym.vehicle import SIM_VEHICLE
+    from sdc_gym.vehicle import SITE_VEHICLE
 
-    # Sim car at full throttle, power limited: 90 kW / v = 0.40 v^2 + 0.015 * 1080 * 9.81.
-    roots = np.roots([0.40, 0.0, 0.015 * 1080 * 9.81, -90_000.0])
-    expected = float(max(roots.real[np.abs(roots.imag) < 1e-9]))
-    assert top_speed(SIM_VEHICLE) == pytest.approx(expected, abs=1e-9)
-    assert expected == pytest.approx(58.65, abs=0.01)
-    env = make(start_speed=58.6, steps_per_action=25,
+    # Sim car at full throttle: constant force against linear drag, F / c.
+    force = 500.0 * (2 / 0.335 + 2 / 0.37)
+    drag = 100.0 + 0.25 * (2 / 0.335**2 + 2 / 0.37**2)
+    expected = force / drag
+    assert expected == pytest.approx(52.61, abs=0.01)
+    # Site car, power limited: 140 kW / v = 0.43 v^2 + 0.015 * m * 9.81.
+    roots = np.roots([0.43, 0.0, 0.015 * SITE_VEHICLE.total_mass * 9.81, -140_000.0])
+    assert top_speed(SITE_VEHICLE) == pytest.approx(
+        float(max(roots.real[np.abs(roots.imag) < 1e-9])), abs=1e-9)
+    env = make(start_speed=52.6, steps_per_action=25,
                incident_rules={"road_half_width": 1e4}).unwrapped
-    # Top speed + one frame of launch ((4000 + 400 / 0.335) / 1080 m/s^2) + 5 %.
-    bound = 1.05 * (expected + 0.02 * (4000.0 + 400.0 / 0.335) / 1080.0)
+    assert env.top_speed == pytest.approx(expected, abs=1e-9)
+    # Top speed + one frame of launch (5688 / 1080 m/s^2, no creep) + 5 %.
+    bound = 1.05 * (expected + 0.02 * force / 1080.0)
     assert env.observation_space["velocity"].high[0] == pytest.approx(bound, rel=1e-6)
     obs, _ = env.reset(seed=0)
     for _ in range(100):
         assert env.observation_space.contains(obs)
         obs = env.step(act(1.0))[0]
-    with pytest.raises(ConfigError, match=r"'start_speed' must be in \[0, 58.64\] m/s"):
+    with pytest.raises(ConfigError, match=r"'start_speed' must be in \[0, 52.61\] m/s"):
         make(start_speed=150.0)
     with pytest.raises(ConfigError, match="top speed is unbounded"):
-        make(vehicle_overrides={"drag_coefficient": 0.0, "rolling_resistance": 0.0})
+        make(vehicle_overrides={"linear_drag": 0.0})
 
 
 def test_velocity_stays_in_its_box_when_a_light_car_overshoots_its_top_speed():
-    # 5 kg and 20 kN: the first frame from rest gains (20000 + 400 / 0.335) / 5 * 0.02
-    # = 84.8 m/s, beyond the 60.8 m/s top speed: the launch term of the bound covers it.
-    env = make(vehicle_overrides={"vehicle_mass": 5.0, "max_drive_force": 20_000.0},
+    # A creeping car of 5 kg and 20 kN: the first frame from rest gains
+    # (20000 + 400 / 0.335) / 5 * 0.02 = 84.8 m/s, beyond the 60.8 m/s top speed (4 kN /
+    # 90 kW against aero drag and rolling): the launch term of the bound covers it.
+    env = make(vehicle_overrides={"vehicle_mass": 5.0, "max_drive_force": 20_000.0,
+                                  "max_drive_power": 90_000.0, "creep_hold_torque": 400.0,
+                                  "drag_coefficient": 0.40, "rolling_resistance": 0.015,
+                                  "linear_drag": 0.0, "rest_speed": 0.0},
                incident_rules={"road_half_width": 1e4}).unwrapped
     obs, _ = env.reset(seed=0)
     speeds = []

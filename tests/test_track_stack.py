@@ -112,7 +112,11 @@ def test_brake_torque_is_mass_times_deceleration_times_wheel_radius_beyond_the_d
     assert site.longitudinal(-0.05) == (0.0, 0.0)  # site deadband 0.1
 
 
-@pytest.mark.parametrize(("params", "hold"), [(SIM, 500.0), (SITE, 875.0)])
+# A sim car creeping at idle, held by 400 N m (the sim preset before issue 19).
+CREEPING_SIM = SIM.replace(creep_hold_torque=400.0, rolling_resistance=0.015)
+
+
+@pytest.mark.parametrize(("params", "hold"), [(CREEPING_SIM, 500.0), (SITE, 875.0)])
 def test_holding_torque_at_standstill_beats_the_idle_creep(params, hold):
     controller = TwistController(params, DT)
     command = controller.control(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, True)
@@ -127,6 +131,27 @@ def test_holding_torque_at_standstill_beats_the_idle_creep(params, hold):
     for _ in range(100):  # 90 % of the creep's torque does not hold
         car.step(0.0, 0.9 * params.creep_hold_torque, 0.0)
     assert car.state.x > 0.0
+
+
+def test_the_sim_car_needs_no_holding_torque_and_stays_at_its_stop():
+    """The original's car does not creep: at a standstill the controller brakes only as
+    the PID asks (nothing once at rest) and the car stays where it stopped."""
+    controller = TwistController(SIM, DT)
+    assert controller.hold_torque == 0.0
+    car = DBWVehicle(SIM)
+    car.reset(0.0, 0.0, 0.0, speed=1.0)
+    for step in range(500):  # 10 s with a stop target from 1 m/s
+        command = controller.control(step * DT, 0.0, 0.0, step * DT, car.state.speed,
+                                     step * DT, True)
+        assert command.throttle == 0.0
+        car.step(command.throttle, command.brake_torque, command.steering)
+    assert controller.holding and car.state.speed == 0.0
+    stopped_at = car.state.x
+    assert 0.0 < stopped_at < 1.0  # braked from 1 m/s, then parked
+    for step in range(500, 1000):
+        command = controller.control(step * DT, 0.0, 0.0, step * DT, 0.0, step * DT, True)
+        car.step(command.throttle, command.brake_torque, command.steering)
+    assert car.state.x == stopped_at
 
 
 def test_manual_mode_resets_so_that_resuming_has_no_throttle_jump():

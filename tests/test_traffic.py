@@ -95,7 +95,7 @@ def _trajectory(seed: int, chunks: list[int]) -> list[np.ndarray]:
         ego_s, v = float(s[-1]), float(v_steps[-1])
         smp = traffic.advance(steps, s, np.full(steps, road.start_d), v_steps)
         out += [smp.s, smp.d, smp.speed, smp.x, smp.y, smp.heading, smp.vx, smp.vy,
-                traffic.ids.copy(), traffic.type_index.copy(), traffic.target_lane.copy()]
+                traffic.spawn_count.copy(), traffic.type_index.copy(), traffic.target_lane.copy()]
     return out
 
 
@@ -162,16 +162,17 @@ def test_spawn_speeds_depend_on_the_side() -> None:
         assert np.all((v0[rel > 0] >= lo_a) & (v0[rel > 0] <= hi_a))
         assert np.all((v0[rel < 0] >= lo_b) & (v0[rel < 0] <= hi_b))
         ahead, behind = ahead + (rel > 0).sum(), behind + (rel < 0).sum()
-        seen = set(traffic.ids.tolist())
+        spawns = traffic.spawn_count.copy()
         # An ego much faster, then much slower than traffic: recycling on both sides.
         speeds = np.r_[np.full(40, 30.0), np.full(40, 8.0)]
         for _, ego_s in drive(traffic, road.start_s, 6.0, speeds, 80.0, chunk=50):
-            for i in np.flatnonzero(~np.isin(traffic.ids, list(seen))):
+            for i in np.flatnonzero(traffic.spawn_count != spawns):
                 respawned += 1
                 side = relative_s(traffic, traffic.s[i], ego_s[-1])
                 lo, hi = (lo_a, hi_a) if side > 0 else (lo_b, hi_b)
                 assert lo <= traffic.desired_speed[i] <= hi
-            seen |= set(traffic.ids.tolist())
+            spawns = traffic.spawn_count.copy()
+            assert np.array_equal(traffic.ids, np.arange(traffic.n))  # fixed slots
     assert ahead > 20 and behind > 20 and respawned > 50
 
 
@@ -183,7 +184,7 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
     ego_d, ego_len, ego_w = 6.0, config.ego_length, config.ego_width
     # Fast (cars fall behind), stopped dead (cars run away, queue behind), slow.
     speeds = np.r_[np.full(600, 30.0), np.zeros(600), np.full(600, 12.0)]  # per 0.1 s
-    ids = traffic.ids.copy()
+    spawns = traffic.spawn_count.copy()
     respawns = same_side = 0
     reappeared = {"ahead": [], "behind": []}  # s from the ego at the end of the chunk
     last_rel = relative_s(traffic, traffic.s, road.start_s)
@@ -192,7 +193,7 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
         # Recycling runs at decisions (0.2 s), two cars at most: a car running away at
         # up to 30 m/s relative can be 6 m past the range (12 m if it waits a turn).
         assert np.abs(rel).max() <= config.spawn_range + 12.0
-        renewed = traffic.ids != ids
+        renewed = traffic.spawn_count != spawns
         for offset in rel[-1, renewed]:
             reappeared["ahead" if offset > 0 else "behind"].append(abs(offset))
         same_side += int(np.sum(np.sign(rel[-1, renewed]) == np.sign(last_rel[renewed])))
@@ -204,10 +205,10 @@ def test_recycling_keeps_cars_near_the_ego_without_overlap() -> None:
         h = np.column_stack([smp.heading, eh])
         hit = footprints_overlap(x, y, h, np.r_[traffic.length, ego_len],
                                  np.r_[traffic.width, ego_w])
-        new = np.r_[traffic.ids != ids, False]  # the ego (last) is not new
+        new = np.r_[traffic.spawn_count != spawns, False]  # the ego (last) is not new
         assert not hit[:, new].any() and not hit[:, :-1, :-1].any()
         respawns += int(new.sum())
-        ids = traffic.ids.copy()
+        spawns = traffic.spawn_count.copy()
     assert respawns > 20
     # The original's coin: both sides, whichever way the cars left (they fall behind
     # while the ego is fast and run away ahead while it stands); within the bands (+- the
@@ -360,11 +361,11 @@ def _rogue_events(config: TrafficConfig) -> tuple[int, int, HighwayTraffic]:
     traffic.reset(np.random.default_rng(4), road.start_s, ego_d, 20.0)
     braking = np.zeros(traffic.n, dtype=bool)
     hard = cut_ins = 0
-    prev = (traffic.ids.copy(), traffic.speed.copy(), traffic.s.copy(), traffic.lane.copy(),
-            traffic.target_lane.copy())
+    prev = (traffic.spawn_count.copy(), traffic.speed.copy(), traffic.s.copy(),
+            traffic.lane.copy(), traffic.target_lane.copy())
     for smp, _ in drive(traffic, road.start_s, ego_d, 20.0, 120.0, chunk=5):
-        ids, speed, s, lane, target = prev
-        same = traffic.ids == ids
+        spawns, speed, s, lane, target = prev
+        same = traffic.spawn_count == spawns
         decel = -np.diff(np.vstack([speed, smp.speed]), axis=0) / DT
         now_braking = same & (decel.max(axis=0) > 4.5)
         hard += int((now_braking & ~braking).sum())
@@ -376,7 +377,7 @@ def _rogue_events(config: TrafficConfig) -> tuple[int, int, HighwayTraffic]:
             cut_ins += int(np.any(there & (np.abs(relative_s(traffic, s, s[i])) < 20.0)))
         hit = footprints_overlap(smp.x, smp.y, smp.heading, traffic.length, traffic.width)
         assert not hit.any()  # even rogue traffic does not crash into itself
-        prev = (traffic.ids.copy(), smp.speed[-1].copy(), traffic.s.copy(),
+        prev = (traffic.spawn_count.copy(), smp.speed[-1].copy(), traffic.s.copy(),
                 traffic.lane.copy(), traffic.target_lane.copy())
     return hard, cut_ins, traffic
 

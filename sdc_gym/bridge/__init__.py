@@ -41,7 +41,7 @@ from sdc_gym.bridge.errors import (
     PortInUse,
     ReplyTimeout,
 )
-from sdc_gym.bridge.map_file import export_highway_map
+from sdc_gym.bridge.map_file import PlannerMap, export_highway_map
 from sdc_gym.bridge.process import PlannerProcess
 from sdc_gym.bridge.protocol import DEFAULT_PORT, decode_reply, encode_telemetry
 from sdc_gym.bridge.session import PlannerOptions, PlannerSession
@@ -60,7 +60,8 @@ def lockstep_config(reply_latency_frames: int) -> dict[str, Any]:
 __all__ = [
     "DEFAULT_PORT", "FAULT_REASONS", "BridgeError", "EmptyPath", "ExchangeStats", "InvalidPath",
     "MalformedReply", "ManualReply", "NonFinitePoint", "PlannerConnection", "PlannerDied",
-    "PlannerDisconnected", "PlannerNotFound", "PlannerNotListening", "PlannerOptions",
-    "PlannerProcess", "PlannerSession", "PortInUse", "ReplyTimeout", "decode_reply",
+    "PlannerDisconnected", "PlannerMap", "PlannerNotFound", "PlannerNotListening",
+    "PlannerOptions", "PlannerProcess", "PlannerSession", "PortInUse", "ReplyTimeout",
+    "decode_reply",
     "encode_telemetry", "export_highway_map", "lockstep_config",
 ]

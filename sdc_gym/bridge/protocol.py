@@ -10,8 +10,9 @@ JSON array ``[event, payload]``:
   from the first ``[`` to the first ``}`` (plus one character), and any ``null`` in the
   message means manual mode. So a nested object, a ``null`` (a NaN printed by a JSON
   library) or a missing field breaks those planners; :func:`encode_telemetry` never
-  produces one. Numbers are 32-bit floats printed with 7 significant digits (``%.7g``),
-  car ids integers.
+  produces one. Numbers are 32-bit floats printed with 7 significant digits, as C#'s
+  ``float.ToString()`` prints them in the original (``%.7g`` with the exponent written
+  ``1E-05`` and a negative zero written ``0``), car ids integers.
 * in manual mode the simulator sends ``42["telemetry",null]`` (:data:`MANUAL_TELEMETRY`)
   and the planner answers ``42["manual",{}]`` (:data:`MANUAL_REPLY`).
 * planner -> simulator: ``42["control",{"next_x":[...],"next_y":[...]}]``, one reply per
@@ -23,6 +24,7 @@ from __future__ import annotations
 
 import functools
 import json
+import re
 from collections.abc import Mapping
 from typing import Any, Final
 
@@ -46,6 +48,11 @@ _SCALARS: Final = ("x", "y", "yaw", "speed", "s", "d")
 _EXCERPT_CHARS: Final = 160
 
 _NUMBER: Final = "%.7g"  # the original's 32-bit floats, printed with 7 significant digits
+# C# writes the exponent of small numbers as "1E-05" where %g writes "1e-05" (no field name
+# holds "e-" or "e+", so the test below only finds numbers).
+_LOWER_EXPONENT: Final = re.compile(r"(?<=\d)e(?=[-+])")
+# ... and prints a negative zero as "0" (Mono, like the .NET Framework).
+_NEGATIVE_ZERO: Final = re.compile(r"(?<=[,:\[])-0(?=[,\]}])")
 
 
 @functools.lru_cache(maxsize=256)
@@ -91,6 +98,10 @@ def encode_telemetry(telemetry: Mapping[str, Any]) -> str:
     # %.7g prints NaN and inf as "nan" and "inf", which no field name contains.
     if "nan" in text or "inf" in text:
         _raise_non_finite(telemetry)
+    if "e-" in text or "e+" in text:
+        text = _LOWER_EXPONENT.sub("E", text)
+    if "-0," in text or "-0]" in text or "-0}" in text:
+        text = _NEGATIVE_ZERO.sub("0", text)
     return text
 
 

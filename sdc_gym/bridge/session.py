@@ -35,7 +35,7 @@ from sdc_gym.bridge.errors import (
     PlannerDisconnected,
     ReplyTimeout,
 )
-from sdc_gym.bridge.map_file import export_highway_map
+from sdc_gym.bridge.map_file import PlannerMap
 from sdc_gym.bridge.process import PlannerProcess
 from sdc_gym.road.highway_map import HighwayMap
 
@@ -50,10 +50,11 @@ class PlannerOptions:
         cwd: the planner's working directory (default: the current one).
         port: the port it listens on; ``None``: a free one when the command has ``{port}``,
             else 4567 (the original's).
-        map_export: where to write the env's map in the original format before starting,
+        map_export: where to put the env's map in the original format before starting,
             relative to ``cwd`` (the template reads ``../data/highway_map.csv``); ``None``:
-            leave the planner's own map (it must then be the env's map). A different file
-            there is kept as ``<name>.orig``.
+            leave the planner's own map (it must then be the env's map). The planner's own
+            file is rewritten only when its numbers differ, and put back when the session
+            closes (:class:`~sdc_gym.bridge.map_file.PlannerMap`).
         startup_timeout: how long to retry connecting while the planner starts.
         reply_timeout: how long to wait for each reply before giving up on the planner.
         log_path: file for the planner's output (default: a temporary file).
@@ -97,6 +98,7 @@ class PlannerSession:
                                       log_path=self.options.log_path)
         self.connection: PlannerConnection | None = None
         self.map_file: Path | None = None
+        self._planner_map: PlannerMap | None = None
 
     @property
     def stats(self) -> ExchangeStats:
@@ -112,8 +114,13 @@ class PlannerSession:
         if options.map_export is not None:
             assert self.road is not None
             target = self.process.cwd / os.path.expanduser(options.map_export)
-            self.map_file = export_highway_map(self.road, target, keep_original=True)
-        self.process.start()
+            self._planner_map = PlannerMap(self.road, target)
+            self.map_file = self._planner_map.__enter__()
+        try:
+            self.process.start()
+        except BaseException:
+            self.close()
+            raise
         try:
             self.connection = self._explained(
                 PlannerConnection.connect, self.process.port, options.startup_timeout,
@@ -160,6 +167,8 @@ class PlannerSession:
         self.process.stop()
         if self.connection is not None:
             self.connection.close()
+        if self._planner_map is not None:
+            self._planner_map.restore()
 
     def __enter__(self) -> PlannerSession:
         self.start()

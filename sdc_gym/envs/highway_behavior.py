@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any, ClassVar
 
 import gymnasium as gym
@@ -10,16 +9,23 @@ import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
-from sdc_gym.config import ConfigError, require, resolve_config
-from sdc_gym.envs.highway_loop import PHYSICS_DT, HighwayLoopEnv
-from sdc_gym.stack.highway.decisions import ACTION_NAMES, DecisionExecutor, HighwayDecision
-from sdc_gym.stack.highway.features import BehaviorFeatures
-from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
-from sdc_gym.stack.highway.perception import Perception, PerceptionParameters
-from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
-from sdc_gym.stack.highway.world_model import WorldModel
+from sdc_gym.envs.highway_behavior_world import (
+    ACTION_TYPES,
+    BEHAVIOR_DEFAULTS,
+    HighwayBehaviorWorld,
+)
+from sdc_gym.envs.highway_loop import HighwayLoopEnv
+from sdc_gym.stack.highway.decisions import ACTION_NAMES, HighwayDecision
 
-ACTION_TYPES = ("discrete", "continuous")
+__all__ = ["ACTION_TYPES", "HighwayLoopBehaviorEnv", "behavior_spaces"]
+
+
+def behavior_spaces(world: HighwayBehaviorWorld) -> tuple[spaces.Space[Any], spaces.Box]:
+    """The action and observation spaces of one env of ``world``."""
+    action_space: spaces.Space[Any] = (
+        spaces.Discrete(len(ACTION_NAMES)) if world.discrete
+        else spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32))
+    return action_space, world.features.space
 
 
 class HighwayLoopBehaviorEnv(gym.Env):
@@ -105,6 +111,15 @@ class HighwayLoopBehaviorEnv(gym.Env):
 
     Unknown keys raise ``ConfigError`` listing the valid ones.
 
+    ## Vectorized
+
+    ``gym.make_vec("sdc_gym/HighwayLoopBehavior-v0", num_envs=E,
+    vectorization_mode="vector_entry_point")`` gives
+    :class:`~sdc_gym.envs.highway_vector.HighwayLoopBehaviorVectorEnv`: ``E`` of these envs
+    as one batch (:class:`~sdc_gym.envs.highway_behavior_world.HighwayBehaviorWorld`, of
+    which this env is the batch of one), env ``i`` exactly this env with the same seed and
+    actions; ``sdc_gym.envs.sb3.SB3VecEnv`` gives stable-baselines3 the same batch.
+
     ## Version History
 
     * v0: initial version.
@@ -112,134 +127,54 @@ class HighwayLoopBehaviorEnv(gym.Env):
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"],
                                           "render_fps": 25}
-    DEFAULT_CONFIG: ClassVar[dict[str, Any]] = {
-        "highway": {},                 # HighwayLoop-v0 config (not steps_per_action)
-        "decision_frames": 12,         # 0.02 s frames per decision (0.24 s)
-        "action": "discrete",          # "discrete" (Discrete(9)) or "continuous" (Box(2))
-        "safety_shield": True,
-        "shield": dataclasses.asdict(ShieldParameters()),
-        "slow_step_mps": 2.0,          # m/s below the current speed for "slow"
-        "kalman_tracking": False,      # perception tracks cars with Kalman filters
-        "reward_lane_change": -0.05,   # per lane change started
-        "reward_refused": -0.02,       # per lane move the shield refused
-        "reward_room_ahead": 0.0,      # weight of the room-ahead shaping potential
-        "shaping_gamma": 0.99,         # the shaping's discount: the algorithm's gamma
-    }
+    DEFAULT_CONFIG: ClassVar[dict[str, Any]] = BEHAVIOR_DEFAULTS
 
     def __init__(self, config: dict[str, Any] | None = None,
                  render_mode: str | None = None) -> None:
-        owner = "HighwayLoopBehavior-v0"
-        self.config = cfg = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
-        require(isinstance(cfg["highway"], dict), owner, "highway", "a mapping of "
-                "HighwayLoop-v0 config keys", cfg["highway"])
-        if "steps_per_action" in cfg["highway"]:
-            raise ConfigError(f"{owner}: set the decision period with 'decision_frames', "
-                              "not highway.steps_per_action")
-        require(isinstance(cfg["decision_frames"], int) and cfg["decision_frames"] >= 1,
-                owner, "decision_frames", "an int >= 1", cfg["decision_frames"])
-        require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
-                cfg["action"])
-        require(cfg["slow_step_mps"] > 0, owner, "slow_step_mps", "> 0 m/s",
-                cfg["slow_step_mps"])
-        highway_config = {"telemetry_info": False, **cfg["highway"],
-                          "steps_per_action": cfg["decision_frames"]}
-        self.highway = HighwayLoopEnv(highway_config, render_mode=render_mode)
+        self.batch = HighwayBehaviorWorld(config, envs=1)
+        self.config = self.batch.config
+        # The path-level env of this batch of one: its road, metrics, traffic and renderer.
+        self.highway = HighwayLoopEnv.__new__(HighwayLoopEnv)
+        self.highway._attach(self.batch.world, render_mode)
         self.render_mode = render_mode
         self.metadata = {**self.metadata, "render_fps": self.highway.metadata["render_fps"]}
-        road = self.highway.road
-        try:
-            shield = SafetyShield(ShieldParameters(**cfg["shield"])) if cfg["safety_shield"] \
-                else None
-        except ValueError as error:
-            raise ConfigError(f"{owner}: {error}") from None
-        self.perception = Perception(road, PerceptionParameters(
-            tracking=bool(cfg["kalman_tracking"])))
-        self.motion = SeedMotionPlanner(road, MotionParameters.for_env(self.highway))
-        self.executor = DecisionExecutor(shield, slow_step_mps=float(cfg["slow_step_mps"]))
-        self.features = BehaviorFeatures(road.lane_count,
-                                         self.perception.params.sensing_range)
+        self.perception = self.batch.perception[0]
+        self.motion = self.batch.motion[0]
+        self.executor = self.batch.executor[0]
+        self.features = self.batch.features
         self.feature_names = self.features.names()
-        self.observation_space = self.features.space
-        self.action_space: spaces.Space[Any] = (
-            spaces.Discrete(len(ACTION_NAMES)) if cfg["action"] == "discrete"
-            else spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32))
-        self.decision_period_s = PHYSICS_DT * cfg["decision_frames"]
-        self._lane_change_reward = float(cfg["reward_lane_change"])
-        self._refused_reward = float(cfg["reward_refused"])
-        self._room_weight = float(cfg["reward_room_ahead"])
-        self._shaping_gamma = float(cfg["shaping_gamma"])
-        require(0.0 <= self._shaping_gamma <= 1.0, owner, "shaping_gamma", "in [0, 1]",
-                cfg["shaping_gamma"])
-        self._world: WorldModel | None = None
-        self._highway_obs: dict[str, Any] = {}
-        self._decisions = 0
+        self.action_space, self.observation_space = behavior_spaces(self.batch)
+        self.decision_period_s = self.batch.decision_period_s
+        self._ready = False
 
     @property
     def road(self) -> Any:
-        return self.highway.road
+        return self.batch.road
 
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32],
                                                               dict[str, Any]]:
         super().reset(seed=seed)
-        self._highway_obs, info = self.highway.reset(seed=seed, options=options)
-        self.perception.reset()
-        self.motion.reset()
-        self.executor.reset()
-        self._decisions = 0
-        self._world = self.perception.perceive(self._highway_obs, 0.0)
-        info["behavior"] = self._behavior_info(None, None)
-        return self.features.encode(self._world, self.executor), info
+        self.batch.reset_at(0, self.np_random)
+        self.highway._state_ready = self._ready = True
+        info = self.batch.info(0, (), final=False)
+        info["behavior"] = {"lane_changes": 0, "refused": 0, "aborted": 0}
+        return self.batch.observations[0].copy(), info
 
     def decode(self, action: Any) -> HighwayDecision:
         """The decision an action stands for (``ValueError`` for an invalid one)."""
-        if self.config["action"] == "discrete":
-            if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
-                action = action.reshape(()).item()
-            return HighwayDecision.from_index(action)
-        return HighwayDecision.from_vector(action, self.executor.cruise_speed_mps)
+        return self.batch.decode(action)
 
     def step(self, action: Any) -> tuple[NDArray[np.float32], float, bool, bool,
                                          dict[str, Any]]:
-        if self._world is None:
+        if not self._ready:
             raise RuntimeError("call reset() before step()")
-        decision = self.decode(action)
-        potential = self._room_potential()  # phi of the state the decision is taken in
-        changes, refused = self.executor.lane_changes, self.executor.refused
-        plan = self.executor.execute(self._world, decision)
-        path = self.motion.plan(self._highway_obs, plan)
-        self._highway_obs, reward, terminated, truncated, info = self.highway.step(path)
-        self._decisions += 1
-        self._world = self.perception.perceive(self._highway_obs,
-                                               self._decisions * self.decision_period_s)
-        if self._room_weight:
-            after = 0.0 if terminated else self._room_potential()
-            reward += self._shaping_gamma * after - potential
-        reward += self._lane_change_reward * (self.executor.lane_changes - changes)
-        reward += self._refused_reward * (self.executor.refused - refused)
-        info["behavior"] = self._behavior_info(action, plan)
-        observation = self.features.encode(self._world, self.executor)
-        return observation, float(reward), terminated, truncated, info
-
-    def _room_potential(self) -> float:
-        """The shaping potential: weight x room ahead in the target lane / sensing range."""
-        if not self._room_weight or self._world is None:
-            return 0.0
-        lane = self.executor.target_lane if self.executor.target_lane >= 0 \
-            else self._world.ego_lane
-        rng = self.perception.params.sensing_range
-        return self._room_weight * min(self._world.lanes[lane].ahead_gap, rng) / rng
-
-    def _behavior_info(self, action: Any, plan: Any) -> dict[str, Any]:
-        executor = self.executor
-        info: dict[str, Any] = {"lane_changes": executor.lane_changes,
-                                "refused": executor.refused, "aborted": executor.aborted}
-        if plan is not None:
-            name = (ACTION_NAMES[int(np.asarray(action).reshape(()))]
-                    if self.config["action"] == "discrete" else "continuous")
-            info.update(action_name=name, target_lane=plan.target_lane,
-                        target_speed=plan.target_speed)
-        return info
+        reward, terminated, truncated, incidents = self.batch.step([action])
+        done_t, done_f = bool(terminated[0]), bool(truncated[0])
+        if self.render_mode == "human":
+            self.render()
+        info = self.batch.info(0, incidents[0], final=done_t or done_f, action=action)
+        return self.batch.observations[0].copy(), float(reward[0]), done_t, done_f, info
 
     def render(self) -> NDArray[np.uint8] | None:
         return self.highway.render()

@@ -83,19 +83,19 @@ def _is_number(value: Any) -> bool:
 
 
 def top_speed(params: VehicleParameters) -> float:
-    """m/s, the speed where full throttle balances drag and rolling resistance (inf when
-    both are 0: nothing stops the car from speeding up).
+    """m/s, the speed where full throttle balances the resistances (inf when there are
+    none: nothing stops the car from speeding up).
 
-    The net force ``F_engine(v) + F_creep(v) - F_roll - drag v^2`` falls strictly with
-    ``v``, so the root is unique; it is found by bisection (a cubic in the power-limited
-    range: ``P / v = drag v^2 + F_roll``; 58.65 m/s for the sim car).
+    The net force ``F_engine(v) + F_creep(v) - F_resist(v)`` falls strictly with ``v``, so
+    the root is unique; it is found by bisection (``F / c`` for the sim car's constant
+    drive force ``F`` and linear drag ``c``: 52.61 m/s; a cubic in the site car's power-
+    limited range: ``P / v = drag v^2 + F_roll``, 65.85 m/s).
     """
-    if params.drag_coefficient <= 0.0 and params.rolling_force <= 0.0:
+    if not _has_resistance(params):
         return math.inf
 
     def net(v: float) -> float:
-        return (params.engine_force(v) + params.creep_force(v) - params.rolling_force
-                - params.drag_coefficient * v * v)
+        return params.engine_force(v) + params.creep_force(v) - params.resistance_force(v)
 
     low, high = 0.0, 1.0
     while net(high) > 0.0:
@@ -106,6 +106,12 @@ def top_speed(params: VehicleParameters) -> float:
             break
         low, high = (middle, high) if net(middle) > 0.0 else (low, middle)
     return high
+
+
+def _has_resistance(params: VehicleParameters) -> bool:
+    """Whether anything resists motion (rolling, linear or aerodynamic drag)."""
+    return (params.drag_coefficient > 0.0 or params.linear_drag > 0.0
+            or params.rolling_force > 0.0)
 
 
 def _speed_bound(params: VehicleParameters) -> float:
@@ -131,9 +137,13 @@ class TrackLoopEnv(TopDownRenderEnv):
     DBW loop rate) the car gets a throttle, a brake *torque* and a *steering-wheel* angle.
     The car is :class:`~sdc_gym.vehicle.dbw_vehicle.DBWVehicle` (force balance with engine,
     brakes through the wheel radius, rolling resistance and drag; a kinematic bicycle with
-    the steer ratio and wheel base; optional actuator lag), with the course's "sim" or
-    "site" parameters. Its reference point is the **centre of the rear axle**; the front
-    bumper is ``wheel_base + 1.0`` m ahead of it (4.0 m for the sim car).
+    the car's steering ratio and wheel base; optional actuator lag), with the course's
+    "sim" or "site" parameters: the sim car is the original simulator's Unity car (no idle
+    creep, constant drive force, speed-proportional drag, steering ratio 18.33 and lock
+    8.2 rad), the site car the real one (an automatic that creeps at idle, actuator lags);
+    ``docs/track_vehicle.md`` has the facts and their sources. Its reference point is the
+    **centre of the rear axle**; the front bumper is ``wheel_base + 1.0`` m ahead of it
+    (4.0 m for the sim car).
 
     Traffic lights cycle green, yellow, red (10 s / 3 s / 10 s by default, seeded phase
     offsets, or scripted), each pole 24 m past its stop line like the original. A pinhole
@@ -152,20 +162,24 @@ class TrackLoopEnv(TopDownRenderEnv):
 
     ``Box([0, 0, -max_steer], [1, max_brake, max_steer], (3,), float32)``:
 
-    | index | command              | unit | range                               |
-    |-------|----------------------|------|-------------------------------------|
-    | 0     | throttle             | -    | [0, 1]                              |
-    | 1     | brake torque         | N m  | [0, tire-locking torque]            |
-    | 2     | steering-wheel angle | rad  | [-max_steer_angle, max_steer_angle] |
+    | index | command              | unit | range                                   |
+    |-------|----------------------|------|-----------------------------------------|
+    | 0     | throttle             | -    | [0, 1]                                  |
+    | 1     | brake torque         | N m  | [0, tire-locking torque]                |
+    | 2     | steering-wheel angle | rad  | [-steering lock, steering lock]         |
 
     The brake limit is the torque at which the tyres lock,
     ``tire_friction * total_mass * g * wheel_radius`` (3549 N m for the sim car, 4201 N m
     for the site car): more pedal than that does not brake harder. It is well above the
     reference controller's ``mass * |decel_limit| * wheel_radius`` (1809 / 428 N m) and the
-    holding torque (400 / 700 N m). Road-wheel angle = steering-wheel angle /
-    ``steer_ratio`` (``max_steer_angle`` = 8 rad, i.e. 0.54 rad at the wheels). The action
-    is held for ``steps_per_action`` frames. A NaN, non-numeric or out-of-range component
-    raises ``ValueError`` naming the component and its valid range.
+    site car's holding torque (700 N m; the sim car needs none). Road-wheel angle =
+    steering-wheel angle / the car's ``road_wheel_ratio``; the steering limit is the car's
+    lock (``steering_wheel_lock``): 8.2 rad and 18.33 for the sim car (0.447 rad at the
+    wheels, as the original reports), 8 rad and 14.8 for the site car (0.54 rad). The
+    controllers are told ``steer_ratio`` 14.8 and ``max_steer_angle`` 8 rad (the course's
+    launch files) for both. The action is held for ``steps_per_action`` frames. A NaN,
+    non-numeric or out-of-range component raises ``ValueError`` naming the component and
+    its valid range.
 
     ## Observation Space
 
@@ -191,12 +205,13 @@ class TrackLoopEnv(TopDownRenderEnv):
 
     Bounds. Every observation lies in ``observation_space``. The velocity bound
     (:attr:`velocity_bound`) is derived from the car: its top speed at full throttle
-    (:func:`top_speed`: engine force = drag + rolling resistance, 58.65 m/s for the sim
+    (:func:`top_speed`: engine force = drag + rolling resistance, 52.61 m/s for the sim
     car, 65.85 m/s for the site car) plus one frame of launch acceleration, which provably
     no throttle, brake or lag can exceed (see :func:`_speed_bound`), plus 5 % for float32
-    rounding: 61.7 m/s (sim). Hence ``start_speed`` must not exceed the top speed, and
-    ``vehicle_overrides`` that zero both drag and rolling resistance (no top speed) are a
-    ``ConfigError``. The yaw-rate bound is that speed times the curvature at full lock.
+    rounding: 55.35 m/s (sim). Hence ``start_speed`` must not exceed the top speed, and
+    ``vehicle_overrides`` that zero drag, linear drag and rolling resistance (no top speed)
+    are a ``ConfigError``. The yaw-rate bound is that speed times the curvature at full
+    lock.
 
     Which stop line is next. ``next_stop_line`` is the next line ahead of the *rear
     axle*. The metrics count a crossing when the *front bumper* passes a line, so while a
@@ -314,7 +329,7 @@ class TrackLoopEnv(TopDownRenderEnv):
         "track": "default",           # built-in name ("default", "site") or waypoint CSV path
         "light_config": None,         # traffic-light YAML path (with a CSV track only)
         "vehicle": None,              # "sim" or "site"; None: "site" on a site track, else "sim"
-        "vehicle_overrides": {},      # VehicleParameters fields, e.g. {"brake_time_constant": 0.1}
+        "vehicle_overrides": {},      # VehicleParameters fields, e.g. {"creep_hold_torque": 400.0}
         "steps_per_action": 1,        # physics frames (0.02 s) per env step: 1 = 50 Hz
         "laps": 1,                    # laps for success
         "max_duration": 1200.0,       # s of simulated time before truncation
@@ -422,7 +437,7 @@ class TrackLoopEnv(TopDownRenderEnv):
 
         # Action bounds: float32 values, validated against exactly what the Box holds.
         max_brake = self.params.max_brake_force * self.params.wheel_radius
-        max_steer = self.params.max_steer_angle
+        max_steer = self.params.steering_wheel_lock
         self.action_space = spaces.Box(
             low=np.array([0.0, 0.0, -max_steer], dtype=np.float32),
             high=np.array([1.0, max_brake, max_steer], dtype=np.float32), dtype=np.float32)
@@ -518,10 +533,10 @@ class TrackLoopEnv(TopDownRenderEnv):
             params = params.replace(**overrides) if overrides else params
         except (TypeError, ValueError) as error:
             raise ConfigError(f"{owner}.vehicle_overrides: {error}") from None
-        if math.isinf(top_speed(params)):
+        if not _has_resistance(params):
             # Nothing would hold the speed: no observation bound, no sensible car.
-            raise ConfigError(f"{owner}.vehicle_overrides: drag_coefficient and "
-                              f"rolling_resistance are both 0, so the car's top speed is "
+            raise ConfigError(f"{owner}.vehicle_overrides: drag_coefficient, linear_drag "
+                              f"and rolling_resistance are all 0, so the car's top speed is "
                               f"unbounded; make at least one of them > 0")
         return params
 

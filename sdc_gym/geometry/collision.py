@@ -75,36 +75,57 @@ def first_contact(
 
     ``ego_xy`` is (k, 2), ``ego_heading`` (k,); the cars' poses are (k, n) and their
     sizes and ids (n,). ``reach_sq``: :func:`contact_reach_sq` of these sizes, if the
-    caller keeps it (else it is computed here).
+    caller keeps it (else it is computed here). One env of :func:`first_contacts`.
     """
     if reach_sq is None:
         reach_sq = contact_reach_sq(ego_length, ego_width, cars_length, cars_width)
-    dx = cars_x - ego_xy[:, :1]
-    dy = cars_y - ego_xy[:, 1:]
+    return first_contacts(ego_xy[None], ego_heading[None], ego_length, ego_width,
+                          cars_x[None], cars_y[None], cars_heading[None],
+                          np.asarray(cars_length)[None], np.asarray(cars_width)[None],
+                          np.asarray(cars_id)[None], np.asarray(reach_sq)[None])[0]
+
+
+def first_contacts(
+    ego_xy: NDArray[np.float64], ego_heading: NDArray[np.float64], ego_length: float,
+    ego_width: float, cars_x: NDArray[np.float64], cars_y: NDArray[np.float64],
+    cars_heading: NDArray[np.float64], cars_length: NDArray[np.float64],
+    cars_width: NDArray[np.float64], cars_id: NDArray[np.int64],
+    reach_sq: NDArray[np.float64],
+) -> NDArray[np.int64]:
+    """:func:`first_contact` for a batch of envs: ``(envs, k)`` contact ids.
+
+    ``ego_xy`` is (envs, k, 2), ``ego_heading`` (envs, k), the cars' poses (envs, k, n),
+    their sizes, ids and ``reach_sq`` (envs, n).
+    """
+    envs, k = ego_heading.shape
+    dx = cars_x - ego_xy[..., :1]
+    dy = cars_y - ego_xy[..., 1:]
     distance_sq = dx * dx
     distance_sq += dy * dy
-    near = distance_sq <= reach_sq
-    contact = np.full(len(ego_xy), -1, dtype=np.int64)
+    near = distance_sq <= reach_sq[:, None, :]
+    contact = np.full((envs, k), -1, dtype=np.int64)
     if not np.count_nonzero(near):  # not near.any(), at a quarter of the cost
         return contact
-    steps, cars = np.nonzero(near)
-    keep = _ego_axes_sieve(dx[steps, cars].tolist(), dy[steps, cars].tolist(),
-                           ego_heading[steps].tolist(), cars_heading[steps, cars].tolist(),
-                           cars_length[cars].tolist(), cars_width[cars].tolist(),
-                           0.5 * ego_length, 0.5 * ego_width)
+    env, steps, cars = np.nonzero(near)
+    length, width = cars_length[env, cars], cars_width[env, cars]
+    keep = _ego_axes_sieve(dx[env, steps, cars].tolist(), dy[env, steps, cars].tolist(),
+                           ego_heading[env, steps].tolist(),
+                           cars_heading[env, steps, cars].tolist(), length.tolist(),
+                           width.tolist(), 0.5 * ego_length, 0.5 * ego_width)
     if not keep:
         return contact
-    steps, cars = steps[keep], cars[keep]
+    env, steps, cars = env[keep], steps[keep], cars[keep]
     hit = boxes_overlap(
-        ego_xy[steps], ego_heading[steps], ego_length, ego_width,
-        np.stack([cars_x[steps, cars], cars_y[steps, cars]], axis=-1),
-        cars_heading[steps, cars], cars_length[cars], cars_width[cars],
+        ego_xy[env, steps], ego_heading[env, steps], ego_length, ego_width,
+        np.stack([cars_x[env, steps, cars], cars_y[env, steps, cars]], axis=-1),
+        cars_heading[env, steps, cars], cars_length[env, cars], cars_width[env, cars],
     )
     if hit.any():
-        steps, cars = steps[hit], cars[hit]
+        env, steps, cars = env[hit], steps[hit], cars[hit]
         # Nearest first, so that a step touching two cars reports the closer one.
-        order = np.lexsort((distance_sq[steps, cars], steps))[::-1]
-        contact[steps[order]] = cars_id[cars[order]]
+        flat = env * k + steps
+        order = np.lexsort((distance_sq[env, steps, cars], flat))[::-1]
+        contact.reshape(-1)[flat[order]] = cars_id[env[order], cars[order]]
     return contact
 
 

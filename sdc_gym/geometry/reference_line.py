@@ -26,12 +26,12 @@ line turns left (counter-clockwise).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
-
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
+
+from sdc_gym.geometry.exact_math import power
 
 FloatArray = NDArray[np.float64]
 
@@ -138,11 +138,10 @@ class ReferenceLine:
         a, b, c, d = (spline.c[k, :, 0] + 1j * spline.c[k, :, 1] for k in range(4))
         # Columns: position a, b, c, d; first derivative 3a, 2b (and c); second 6a (and 2b).
         self._coef = np.ascontiguousarray(np.stack([a, b, c, d, 3 * a, 2 * b, 6 * a], axis=1))
-        self._coef_rows: list[tuple[complex, ...]] = [tuple(row) for row in self._coef.tolist()]
         # The same rows as 14 floats, x and y of each coefficient in turn (a.x, a.y, b.x,
-        # ...), for the per-point loops that run on floats (_newton_points, line_frames_few).
+        # ...), for the evaluations in real arithmetic (_newton_arrays, line_frames).
         xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
-        self._coef_xy_rows: list[tuple[float, ...]] = [tuple(row) for row in xy_rows.tolist()]
+        self._coef_xy = np.ascontiguousarray(xy_rows)
         self._total_param = coarse_length
 
     # ------------------------------------------------------------------ evaluation
@@ -296,91 +295,93 @@ class ReferenceLine:
     def _newton_scalar(
         self, points: FloatArray, s0: ArrayLike
     ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """:meth:`_newton` for a few points, one at a time in Python complex arithmetic."""
+        """:meth:`_newton` for a few points: :meth:`_newton_arrays` (each point's own
+        iteration), from the guesses as s."""
         shape = points.shape[:-1]
         flat_u0 = np.broadcast_to(self._param(s0), shape).ravel().tolist()
         scale = self._param_scale
-        results = self._newton_points(points.reshape(-1, 2).tolist(),
-                                      [u0 / scale for u0 in flat_u0])
-        s_out, d_out, moved_out = zip(*results, strict=True) if results else ((), (), ())
-        return (np.array(s_out).reshape(shape), np.array(d_out).reshape(shape),
-                np.array(moved_out).reshape(shape))
+        flat = points.reshape(-1, 2)
+        s, d, moved = self._newton_arrays(flat[:, 0], flat[:, 1],
+                                          np.array([u0 / scale for u0 in flat_u0]))
+        return s.reshape(shape), d.reshape(shape), moved.reshape(shape)
+
+    def line_frames(self, s: ArrayLike) -> tuple[FloatArray, ...]:
+        """Point, right unit normal and curvature of the line at arc lengths ``s`` (any
+        shape): arrays ``(x, y, nx, ny, curvature)``, ``to_xy(s, d) == (x + d nx,
+        y + d ny)``; agrees with the vectorized methods to rounding.
+
+        The arithmetic is that of a per-point evaluation on Python floats (x and y apart,
+        the speed as ``abs`` of a complex, the cube as ``pow``), so that planners that
+        were written that way keep their numbers whatever the batch.
+        """
+        s = np.asarray(s, dtype=np.float64)
+        u = np.remainder(s, self.length) * self._param_scale
+        i = (u * self._inverse_step).astype(np.intp)
+        np.minimum(i, self._segments - 1, out=i)
+        c = self._coef_xy[i]  # (..., 14)
+        t = u - i * self._knot_step
+        ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = np.moveaxis(c, -1, 0)
+        velocity_x = (a3x * t + b2x) * t + cx
+        velocity_y = (a3y * t + b2y) * t + cy
+        speed = np.hypot(velocity_x, velocity_y)
+        # Im(conj(velocity) * acceleration): the cross product of r' and r''.
+        curvature = (velocity_x * (a6y * t + b2y) - velocity_y * (a6x * t + b2x)) / power(
+            speed, 3.0)
+        return (((ax * t + bx) * t + cx) * t + dx, ((ay * t + by) * t + cy) * t + dy,
+                velocity_y / speed, -velocity_x / speed, curvature)
 
     def line_frames_few(self, s_values: list[float]) -> list[tuple[float, float, float, float,
                                                                   float]]:
-        """Point, right unit normal and curvature at a handful of arc lengths, as Python
-        tuples ``(x, y, nx, ny, curvature)``: for planners that add a few points per cycle
-        (no numpy call at all; numpy's fixed cost per call dominates at this size).
+        """:meth:`line_frames` for a list of arc lengths, as tuples ``(x, y, nx, ny,
+        curvature)`` of Python floats."""
+        return list(zip(*(column.tolist() for column in self.line_frames(s_values)),
+                        strict=True))
 
-        ``to_xy(s, d) == (x + d nx, y + d ny)``; agrees with the vectorized methods to
-        rounding.
-        """
-        rows, step_u, inverse = self._coef_xy_rows, self._knot_step, self._inverse_step
-        last, scale, length = self._segments - 1, self._param_scale, self.length
-        frames = []
-        for s in s_values:
-            u = (s % length) * scale
-            i = int(u * inverse)
-            if i > last:
-                i = last
-            ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = rows[i]
-            t = u - i * step_u
-            # x and y apart, as in _newton_points; the speed is the complex abs (hypot).
-            velocity_x = (a3x * t + b2x) * t + cx
-            velocity_y = (a3y * t + b2y) * t + cy
-            speed = abs(complex(velocity_x, velocity_y))
-            # Im(conj(velocity) * acceleration): the cross product of r' and r''.
-            curvature = (velocity_x * (a6y * t + b2y) - velocity_y * (a6x * t + b2x)) / speed**3
-            frames.append((((ax * t + bx) * t + cx) * t + dx, ((ay * t + by) * t + cy) * t + dy,
-                           velocity_y / speed, -velocity_x / speed, curvature))
-        return frames
+    def project(self, x: ArrayLike, y: ArrayLike, s_guess: ArrayLike
+                ) -> tuple[FloatArray, FloatArray]:
+        """:meth:`to_frenet` of points ``(x, y)`` (arrays of one shape) from their guessed
+        s: each point's own Newton iteration (it stops when that point's step is below
+        1e-6 m), redone from the global search for the points it left more than 25 m
+        away (the car is not where the guess said)."""
+        x = np.asarray(x, dtype=np.float64)
+        y = np.asarray(y, dtype=np.float64)
+        s, d, moved = self._newton_arrays(x, y, np.asarray(s_guess, dtype=np.float64))
+        lost = (np.abs(moved) > _LOCAL_SEARCH_TRUST_M) | (np.abs(d) > _LOCAL_SEARCH_TRUST_M)
+        if np.count_nonzero(lost):
+            s, d = s.copy(), d.copy()
+            xl, yl = x[lost], y[lost]
+            s0 = self.nearest_sample_s(np.stack([xl, yl], axis=-1))
+            s[lost], d[lost], _ = self._newton_arrays(xl, yl, s0)
+        return s, d
 
     def project_few(self, points: list[list[float]],
                     s_guesses: list[float]) -> tuple[list[float], list[float]]:
-        """:meth:`to_frenet` for a handful of points given and returned as Python lists.
+        """:meth:`project` for points and guesses given and returned as Python lists."""
+        xy = np.asarray(points, dtype=np.float64).reshape(-1, 2)
+        s, d = self.project(xy[:, 0], xy[:, 1], s_guesses)
+        return s.tolist(), d.tolist()
 
-        The env projects the ego's few frames per step this way: with lists in and out
-        there is no numpy call at all on the common path.
+    def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray
+                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Newton projections of points from their guessed s: (s, d, how far s moved).
+
+        Every point iterates until its own step is below the tolerance (at most
+        ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``): a complex
+        times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``. The
+        closing evaluation takes d from the right normal ``1j * conj(velocity)`` and
+        ``abs(velocity)`` (``hypot``), as complex arithmetic does.
         """
-        s_out: list[float] = []
-        d_out: list[float] = []
-        for (x, y), (s, d, moved) in zip(points, self._newton_points(points, s_guesses),
-                                         strict=True):
-            if abs(moved) > _LOCAL_SEARCH_TRUST_M or abs(d) > _LOCAL_SEARCH_TRUST_M:
-                s, d, _ = self._newton_point(x, y, float(self.nearest_sample_s((x, y))))
-            s_out.append(s)
-            d_out.append(d)
-        return s_out, d_out
-
-    def _newton_point(self, x: float, y: float, s0: float) -> tuple[float, float, float]:
-        """One point's Newton projection from ``s0``: s, d, and how far s moved."""
-        return self._newton_points([(x, y)], [s0])[0]
-
-    def _newton_points(self, points: Sequence[Sequence[float]], s_guesses: Sequence[float],
-                       ) -> list[tuple[float, float, float]]:
-        """Newton projections of a few points from their guessed s: (s, d, how far s
-        moved) each.
-
-        The env runs this for every frame, so it is written for CPython: the iteration
-        runs on floats, x and y apart, with the coefficients as floats
-        (``_coef_xy_rows``). That is the complex arithmetic's own rounding: a complex
-        times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``
-        (the same bits, without allocating complex numbers or computing the imaginary
-        parts nobody reads); the clamps are plain comparisons. The closing evaluation
-        (d, from ``abs`` of a complex velocity) stays complex.
-        """
-        rows, complex_rows = self._coef_xy_rows, self._coef_rows
-        step_u, inverse, length = self._knot_step, self._inverse_step, self.length
+        rows, step_u, inverse = self._coef_xy, self._knot_step, self._inverse_step
         last, total, scale = self._segments - 1, self._total_param, self._param_scale
-        results = []
-        for (x, y), s0 in zip(points, s_guesses, strict=True):
-            u0 = (s0 % length) * scale
-            u = u0
+        u0 = np.remainder(s0, self.length) * scale
+        u = u0.copy()
+        active = np.ones(u.shape, dtype=bool)
+        with np.errstate(divide="ignore", invalid="ignore"):
             for _ in range(_NEWTON_ITERATIONS):
-                i = int(u * inverse)
-                if i > last:
-                    i = last
-                ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = rows[i]
+                i = (u * inverse).astype(np.intp)
+                np.minimum(i, last, out=i)
+                ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = np.moveaxis(
+                    rows[i], -1, 0)
                 t = u - i * step_u
                 offset_x = ((ax * t + bx) * t + cx) * t + dx - x
                 offset_y = ((ay * t + by) * t + cy) * t + dy - y
@@ -390,21 +391,21 @@ class ReferenceLine:
                 fp = (velocity_x * velocity_x + velocity_y * velocity_y) + (
                     offset_x * (a6x * t + b2x) + offset_y * (a6y * t + b2y))
                 step = f / fp
-                if step > _MAX_NEWTON_STEP_M:
-                    step = _MAX_NEWTON_STEP_M
-                elif step < -_MAX_NEWTON_STEP_M:
-                    step = -_MAX_NEWTON_STEP_M
-                u = (u - step) % total
-                if -_NEWTON_TOLERANCE_M < step < _NEWTON_TOLERANCE_M:
+                np.minimum(step, _MAX_NEWTON_STEP_M, out=step)
+                np.maximum(step, -_MAX_NEWTON_STEP_M, out=step)
+                np.copyto(u, np.remainder(u - step, total), where=active)
+                active &= ~((step > -_NEWTON_TOLERANCE_M) & (step < _NEWTON_TOLERANCE_M))
+                if not np.count_nonzero(active):
                     break
-            i = int(u * inverse)
-            if i > last:
-                i = last
-            a, b, c, d0, a3, b2, _ = complex_rows[i]
-            t = u - i * step_u
-            velocity = (a3 * t + b2) * t + c
-            point = ((a * t + b) * t + c) * t + d0
-            d = ((complex(x, y) - point) * (1j * velocity.conjugate())).real / abs(velocity)
-            moved = ((u - u0 + 0.5 * total) % total - 0.5 * total) / scale
-            results.append((u / scale, d, moved))
-        return results
+        i = (u * inverse).astype(np.intp)
+        np.minimum(i, last, out=i)
+        ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, _, _ = np.moveaxis(rows[i], -1, 0)
+        t = u - i * step_u
+        velocity_x = (a3x * t + b2x) * t + cx
+        velocity_y = (a3y * t + b2y) * t + cy
+        point_x = ((ax * t + bx) * t + cx) * t + dx
+        point_y = ((ay * t + by) * t + cy) * t + dy
+        d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / np.hypot(velocity_x,
+                                                                              velocity_y)
+        moved = (np.remainder(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
+        return u / scale, d, moved

@@ -69,110 +69,23 @@ once. Every quantity is computed per step from the same inputs, and running sums
 (distance, progress, block speeds) are accumulated strictly in step order, so feeding a
 trajectory one step at a time or in chunks of any size gives bit-identical results.
 
-Cost: ``k`` is small (1-5), where numpy's fixed cost per call (~0.5-1 us) outweighs its
-per-element speed, so the arrays are turned into lists once and the per-step work runs on
-Python floats; chunk-level ``min``/``max`` tests skip the per-step incident walks in the
-common incident-free case, and the block rule runs once per 10 steps.
+Implementation: :class:`~sdc_gym.metrics.batch.DrivingMetricsBatch` applies the rules to
+a batch of envs at once (arrays with a leading env axis); :class:`DrivingMetrics` is the
+batch of one, for a single env. Sums run strictly in step order (the block and window
+means are sequential sums, like Python's ``sum`` of floats before 3.12) and lengths use
+Python's ``math.hypot``, so results are the same bit for bit whatever the batch.
 """
 
 from __future__ import annotations
 
-import math
-from dataclasses import asdict, dataclass
-from itertools import accumulate
 from typing import Any
 
 import numpy as np
 
-from sdc_gym.units import MPS_TO_MPH
+from sdc_gym.metrics.batch import DrivingMetricsBatch
+from sdc_gym.metrics.incidents import INCIDENT_KINDS, Incident, IncidentRules
 
-INCIDENT_KINDS: tuple[str, ...] = ("collision", "acceleration", "jerk", "speed", "lane", "off_road")
-"""Every incident kind, in the order incidents of the same step are reported."""
-
-_KIND_ORDER = {kind: i for i, kind in enumerate(INCIDENT_KINDS)}
-
-
-def _as_list(values: np.ndarray | list[Any]) -> list[Any]:
-    """A list as it is, an array as a (nested) list of Python numbers."""
-    return values if type(values) is list else np.asarray(values).tolist()
-
-
-@dataclass(frozen=True)
-class IncidentRules:
-    """Sampling and thresholds of the incident rules; defaults are the Udacity highway's.
-
-    Other environments pass their own limits, e.g. a track with no lane bands
-    (``straddle_bands=()``), other road edges or another speed limit.
-    """
-
-    dt: float = 0.02
-    """Physics step, s. Every recorded sample is one step apart."""
-    block_steps: int = 10
-    """Samples per acceleration block (10 x 0.02 s = 0.2 s)."""
-    jerk_blocks: int = 5
-    """Blocks per jerk window (5 x 0.2 s = 1 s)."""
-    max_acceleration: float = 10.0
-    """Block total acceleration at or above which an incident is raised, m/s^2."""
-    max_jerk: float = 10.0
-    """Window jerk magnitude at or above which an incident is raised, m/s^3."""
-    speed_limit: float = 22.352
-    """Speed strictly above which an incident is raised, m/s (50 mph)."""
-    road_d_min: float = 0.8
-    """Lateral offset d strictly below which the car is off the road, m."""
-    road_d_max: float = 11.2
-    """Lateral offset d strictly above which the car is off the road, m."""
-    straddle_bands: tuple[tuple[float, float], ...] = ((3.2, 4.8), (7.2, 8.8))
-    """Open intervals (lo, hi) of d, m, in which the car straddles a lane line."""
-    max_straddle_steps: int = 150
-    """Consecutive straddling steps allowed; one more raises an incident (150 = 3 s)."""
-
-    def __post_init__(self) -> None:
-        if not self.dt > 0.0:
-            raise ValueError(f"dt must be > 0, got {self.dt}")
-        if self.block_steps < 1 or self.jerk_blocks < 1 or self.max_straddle_steps < 0:
-            raise ValueError("block_steps and jerk_blocks must be >= 1, max_straddle_steps >= 0")
-        if not self.road_d_min < self.road_d_max:
-            raise ValueError("road_d_min must be < road_d_max")
-        # Normalise to a tuple of float pairs so the rules stay hashable and comparable.
-        bands = tuple((float(lo), float(hi)) for lo, hi in self.straddle_bands)
-        if any(not lo < hi for lo, hi in bands):
-            raise ValueError(f"each straddle band needs lo < hi, got {bands}")
-        object.__setattr__(self, "straddle_bands", bands)
-
-    @property
-    def block_seconds(self) -> float:
-        """Duration of one acceleration block, s."""
-        return self.block_steps * self.dt
-
-    @property
-    def jerk_window_seconds(self) -> float:
-        """Duration of one jerk window, s."""
-        return self.jerk_blocks * self.block_steps * self.dt
-
-
-@dataclass(frozen=True)
-class Incident:
-    """One incident, located at the physics step where it began.
-
-    ``value`` depends on the kind: the car id (collision), the block total acceleration in
-    m/s^2 (acceleration), the signed window jerk in m/s^3 (jerk), the speed in m/s
-    (speed), the straddle duration in s (lane), ``d`` in m (off_road), or what the env
-    documents for its ``extra_kinds`` (the track loop's red_light: the stop line's index).
-    Block and window incidents are placed at the last step of their block.
-    """
-
-    kind: str
-    time: float
-    step: int
-    x: float
-    y: float
-    s: float
-    d: float
-    value: float
-
-    def as_dict(self) -> dict[str, Any]:
-        """Plain-Python dict, ready for JSON."""
-        return asdict(self)
+__all__ = ["INCIDENT_KINDS", "DrivingMetrics", "Incident", "IncidentRules"]
 
 
 class DrivingMetrics:
@@ -192,26 +105,23 @@ class DrivingMetrics:
     def __init__(
         self, rules: IncidentRules, loop_length: float, extra_kinds: tuple[str, ...] = ()
     ) -> None:
-        if not loop_length > 0.0:
-            raise ValueError(f"loop_length must be > 0, got {loop_length}")
-        kinds = (*INCIDENT_KINDS, *extra_kinds)
-        if len(set(kinds)) != len(kinds):
-            raise ValueError(f"extra_kinds must be new, distinct kinds (built-in: "
-                             f"{list(INCIDENT_KINDS)}), got {list(extra_kinds)}")
-        self.rules = rules
-        self.loop_length = float(loop_length)
-        self.kinds: tuple[str, ...] = kinds
+        self._attach(DrivingMetricsBatch(rules, loop_length, 1, extra_kinds), 0)
+
+    @classmethod
+    def view(cls, batch: DrivingMetricsBatch, env: int) -> DrivingMetrics:
+        """Env ``env`` of an existing batch, with this class's API (read it; the batch
+        records)."""
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        return made
+
+    def _attach(self, batch: DrivingMetricsBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.rules = batch.rules
+        self.loop_length = batch.loop_length
+        self.kinds: tuple[str, ...] = batch.kinds
         """Every incident kind this instance counts, in report order."""
-        self._kind_order = {kind: i for i, kind in enumerate(kinds)}
-        self._extra_kinds = frozenset(extra_kinds)
-        self._info_keys = tuple(f"incidents_{kind}" for kind in kinds)
-        # Derived constants, computed once because record() is on the hot path.
-        self._inv_dt = 1.0 / rules.dt
-        self._inv_dt2 = self._inv_dt**2
-        self._inv_dt3 = self._inv_dt**3
-        self._ready = False
-        self.reset(0.0, 0.0, 0.0, 0.0)
-        self._ready = False  # the dummy reset above does not start an episode
 
     # ------------------------------------------------------------------ episode control
     def reset(self, x: float, y: float, s: float, d: float, speed: float = 0.0) -> None:
@@ -219,50 +129,7 @@ class DrivingMetrics:
 
         This is step 0 at time 0; it is not checked for incidents.
         """
-        x, y = float(x), float(y)
-        # p[t-2], p[t-1], velocity * dt, acceleration * dt^2 and |velocity * dt| carried
-        # between record() calls. Before the reset they are unknown: p0 copies and zeros
-        # stand in, and the samples that use them are masked out (see _mask_warmup).
-        self._geo = (x, y, x, y, 0.0, 0.0, 0.0, 0.0, 0.0)
-        self._s_last = float(s)
-        self._steps = 0
-        self._distance = 0.0
-        self._progress = 0.0
-        self._laps = 0
-        self._next_lap_mark = self.loop_length
-        self._last_mark_time = 0.0
-        self._lap_times: list[float] = []
-        self._max_speed = 0.0
-        self._last_speed = float(speed)
-        self._max_raw_acc = 0.0
-        self._max_raw_jerk = 0.0
-        self._last_raw_acc = 0.0
-        self._last_raw_jerk = 0.0
-        # Block rule state.
-        self._blk_v: list[float] = []
-        self._blk_c: list[float] = []
-        self._prev_block_v = float(speed)
-        self._window: list[float] = []
-        self._prev_window_mean: float | None = None
-        self._last_acc = 0.0
-        self._last_acc_t = 0.0
-        self._last_acc_n = 0.0
-        self._last_jerk = 0.0
-        self._max_acc = 0.0
-        self._max_jerk = 0.0
-        # Rising-edge state of each incident kind.
-        self._acc_flag = False
-        self._jerk_flag = False
-        self._speeding = False
-        self._off_road = False
-        self._straddle_run = 0
-        self._contact = -1
-        # Incident bookkeeping.
-        self._counts = dict.fromkeys(self.kinds, 0)
-        self._incidents: list[Incident] = []
-        self._dist_at_incident = 0.0
-        self._longest_closed = 0.0
-        self._ready = True
+        self.batch.reset_at(self.env, x, y, s, d, speed)
 
     def record(
         self,
@@ -274,9 +141,6 @@ class DrivingMetrics:
         extra_incidents: list[tuple[int, str, float]] | None = None,
     ) -> list[Incident]:
         """Add ``k >= 1`` consecutive physics steps and return the incidents they began.
-
-        ``xy``, ``s``, ``d`` and ``speed`` may be arrays or the same as (nested) Python
-        lists of floats, which skips their conversion (the highway env passes lists).
 
         Args:
             xy: positions, shape ``(k, 2)``, m.
@@ -291,346 +155,131 @@ class DrivingMetrics:
         Returns:
             The incidents that began during these steps, in step order.
         """
-        if not self._ready:
-            raise RuntimeError("call reset() before record()")
-        k = len(speed)
-        if k == 0:
-            return []
-        rules = self.rules
-        pts, speed_l, s_l, d_l = (_as_list(values) for values in (xy, speed, s, d))
-
-        # ---- geometry. A scalar loop on Python floats: for the 1-5 samples of an env
-        # step it is ~3x faster than the equivalent numpy expressions, whose fixed cost
-        # per call dominates at this size. (x1, y1), (x2, y2) are p[t-2], p[t-1];
-        # (vx2, vy2), (ax2, ay2) the previous velocity * dt and acceleration * dt^2.
-        x1, y1, x2, y2, vx2, vy2, ax2, ay2, l2 = self._geo
-        hypot = math.hypot
-        curv: list[float] = []
-        raw_acc: list[float] = []
-        raw_jerk: list[float] = []
-        lengths: list[float] = []
-        for x, y in pts:
-            vx = x - x2
-            vy = y - y2
-            step_len = hypot(vx, vy)
-            ax = vx - vx2
-            ay = vy - vy2
-            raw_acc.append(hypot(ax, ay))
-            raw_jerk.append(hypot(ax - ax2, ay - ay2))
-            lengths.append(step_len)
-            # Menger curvature 2 |cross| / (|a| |b| |a + b|) of (p[t-2], p[t-1], p[t]);
-            # a degenerate triple (any two points equal) has den == 0 and counts as 0.
-            den = l2 * step_len * hypot(x - x1, y - y1)
-            curv.append(2.0 * abs(vx2 * vy - vy2 * vx) / den if den else 0.0)
-            x1, y1, x2, y2, vx2, vy2, ax2, ay2, l2 = x2, y2, x, y, vx, vy, ax, ay, step_len
-        self._geo = (x1, y1, x2, y2, vx2, vy2, ax2, ay2, l2)
-        t0 = self._steps
-        if t0 < 3:
-            self._mask_warmup(t0, curv, raw_acc, raw_jerk)
-
-        # ---- running sums, strictly in step order (bit-identical for any chunking).
-        cum_dist = list(accumulate(lengths, initial=self._distance))
-        length, half = self.loop_length, 0.5 * self.loop_length
-        # Signed modular difference: wrapping L -> 0 forward counts forward.
-        s_prev = [self._s_last, *s_l]  # one longer than s_l: zip stops at s_l's end
-        ds = [(s1 - s0 + half) % length - half for s0, s1 in zip(s_prev, s_l, strict=False)]
-        cum_prog = list(accumulate(ds, initial=self._progress))
-        self._distance = cum_dist[-1]
-        self._progress = cum_prog[-1]
-        self._s_last = s_l[-1]
-        self._steps = t0 + k
-        if self._progress >= self._next_lap_mark:
-            self._count_laps(cum_prog, t0)
-
-        # ---- maxima and latest values.
-        vmax = max(speed_l)
-        if vmax > self._max_speed:
-            self._max_speed = vmax
-        self._last_speed = speed_l[-1]
-        m = max(raw_acc) * self._inv_dt2
-        if m > self._max_raw_acc:
-            self._max_raw_acc = m
-        m = max(raw_jerk) * self._inv_dt3
-        if m > self._max_raw_jerk:
-            self._max_raw_jerk = m
-        self._last_raw_acc = raw_acc[-1] * self._inv_dt2
-        self._last_raw_jerk = raw_jerk[-1] * self._inv_dt3
-
-        # ---- per-step incidents. Each check first asks a cheap chunk-level question and
-        # only walks the steps when something may have happened (or an event is ongoing).
-        pending: list[tuple[int, int, float]] = []  # (chunk index, kind order, value)
-        if vmax > rules.speed_limit or self._speeding:
-            flag = self._speeding
-            for i, v in enumerate(speed_l):
-                now = v > rules.speed_limit
-                if now and not flag:
-                    pending.append((i, _KIND_ORDER["speed"], v))
-                flag = now
-            self._speeding = flag
-        dlo, dhi = min(d_l), max(d_l)
-        if dlo < rules.road_d_min or dhi > rules.road_d_max or self._off_road:
-            flag = self._off_road
-            for i, dd in enumerate(d_l):
-                now = dd < rules.road_d_min or dd > rules.road_d_max
-                if now and not flag:
-                    pending.append((i, _KIND_ORDER["off_road"], dd))
-                flag = now
-            self._off_road = flag
-        bands = rules.straddle_bands
-        if self._straddle_run or any(dlo < hi and dhi > lo for lo, hi in bands):
-            run = self._straddle_run
-            for i, dd in enumerate(d_l):
-                if any(lo < dd < hi for lo, hi in bands):
-                    run += 1
-                    if run == rules.max_straddle_steps + 1:
-                        pending.append((i, _KIND_ORDER["lane"], run * rules.dt))
-                else:
-                    run = 0
-            self._straddle_run = run
-        if collision_ids is not None:
-            ids = collision_ids.tolist()
-            if self._contact >= 0 or max(ids) >= 0:
-                contact = self._contact
-                for i, cid in enumerate(ids):
-                    if cid < 0:
-                        cid = -1
-                    elif cid != contact:
-                        pending.append((i, _KIND_ORDER["collision"], float(cid)))
-                    contact = cid
-                self._contact = contact
-        else:
-            self._contact = -1
-
-        if extra_incidents:
-            for i, kind, value in extra_incidents:
-                if kind not in self._extra_kinds or not 0 <= i < k:
-                    raise ValueError(f"extra incident ({i}, {kind!r}): the kind must be one "
-                                     f"of extra_kinds {sorted(self._extra_kinds)} and the "
-                                     f"index within the {k} recorded steps")
-                pending.append((i, self._kind_order[kind], float(value)))
-
-        # ---- block rule: small Python work once per completed block (every 10 steps).
-        blk_v = self._blk_v
-        blk_v.extend(speed_l)
-        self._blk_c.extend(curv)
-        if len(blk_v) >= rules.block_steps:
-            self._close_blocks(k, pending)
-
-        if not pending:
-            return []
-        return self._log_incidents(pending, t0, pts, s_l, d_l, cum_dist)
-
-    # ------------------------------------------------------------------ internals
-    @staticmethod
-    def _mask_warmup(t0: int, curv: list[float], acc: list[float], jerk: list[float]) -> None:
-        """Blank the samples that would use positions from before the reset.
-
-        Sample ``m`` of the chunk is global step ``t = t0 + 1 + m``; its curvature and raw
-        acceleration need ``p[t-2]`` (so ``t >= 2``), its raw jerk ``p[t-3]`` (``t >= 3``).
-        Curvature becomes NaN (dropped from the block mean), raw values 0 (neutral for max).
-        """
-        for m in range(min(len(curv), 3 - t0)):
-            t = t0 + 1 + m
-            if t < 2:
-                curv[m] = math.nan
-                acc[m] = 0.0
-            if t < 3:
-                jerk[m] = 0.0
-
-    def _count_laps(self, cum_prog: list[float], t0: int) -> None:
-        """Record every lap mark crossed in this chunk, timed by linear interpolation."""
-        dt = self.rules.dt
-        for i in range(1, len(cum_prog)):
-            p0, p1 = cum_prog[i - 1], cum_prog[i]
-            while p1 >= self._next_lap_mark:
-                mark = self._next_lap_mark
-                # p0 < mark <= p1 here, so p1 > p0 and the fraction lies in (0, 1].
-                t_cross = (t0 + i - 1 + (mark - p0) / (p1 - p0)) * dt
-                self._lap_times.append(t_cross - self._last_mark_time)
-                self._last_mark_time = t_cross
-                self._laps += 1
-                self._next_lap_mark = (self._laps + 1) * self.loop_length
-
-    def _close_blocks(self, k: int, pending: list[tuple[int, int, float]]) -> None:
-        """Evaluate every block completed by this chunk (and the jerk windows they close)."""
-        rules = self.rules
-        n = rules.block_steps
-        block_s = rules.block_seconds
-        blk_v, blk_c = self._blk_v, self._blk_c
-        # Chunk index of the sample that completes the first block.
-        i_end = n - (len(blk_v) - k) - 1
-        while len(blk_v) >= n:
-            v = sum(blk_v[:n]) / n
-            kappa = [c for c in blk_c[:n] if c == c]  # NaN != NaN: drop warm-up samples
-            kappa_mean = sum(kappa) / len(kappa) if kappa else 0.0
-            del blk_v[:n], blk_c[:n]
-            acc_t = (v - self._prev_block_v) / block_s
-            acc_n = v * v * kappa_mean
-            total = math.hypot(acc_t, acc_n)
-            self._prev_block_v = v
-            self._last_acc_t = acc_t
-            self._last_acc_n = acc_n
-            self._last_acc = total
-            if total > self._max_acc:
-                self._max_acc = total
-            violating = total >= rules.max_acceleration
-            if violating and not self._acc_flag:
-                pending.append((i_end, _KIND_ORDER["acceleration"], total))
-            self._acc_flag = violating
-
-            window = self._window
-            window.append(total)
-            if len(window) == rules.jerk_blocks:
-                mean = sum(window) / len(window)
-                window.clear()
-                if self._prev_window_mean is not None:  # the first window has no jerk
-                    jerk = (mean - self._prev_window_mean) / rules.jerk_window_seconds
-                    self._last_jerk = jerk
-                    if abs(jerk) > self._max_jerk:
-                        self._max_jerk = abs(jerk)
-                    violating = abs(jerk) >= rules.max_jerk
-                    if violating and not self._jerk_flag:
-                        pending.append((i_end, _KIND_ORDER["jerk"], jerk))
-                    self._jerk_flag = violating
-                self._prev_window_mean = mean
-            i_end += n
-
-    def _log_incidents(
-        self,
-        pending: list[tuple[int, int, float]],
-        t0: int,
-        pts: list[list[float]],
-        s_l: list[float],
-        d_l: list[float],
-        cum_dist: list[float],
-    ) -> list[Incident]:
-        """Turn pending (index, kind, value) triples into Incidents, in step order."""
-        pending.sort(key=lambda p: (p[0], p[1]))
-        dt = self.rules.dt
-        new: list[Incident] = []
-        for i, order, value in pending:
-            kind = self.kinds[order]
-            step = t0 + 1 + i
-            x, y = pts[i]
-            new.append(Incident(kind, step * dt, step, x, y, s_l[i], d_l[i], float(value)))
-            self._counts[kind] += 1
-            # The stretch without incident ends at this step's distance.
-            dist = cum_dist[i + 1]
-            self._longest_closed = max(self._longest_closed, dist - self._dist_at_incident)
-            self._dist_at_incident = dist
-        self._incidents.extend(new)
-        return new
+        if self.batch.envs != 1:
+            raise RuntimeError("record() of one env of a batch: record the batch")
+        speed_a = np.asarray(speed, dtype=np.float64).reshape(1, -1)
+        k = speed_a.shape[1]
+        ids = None if collision_ids is None else np.asarray(collision_ids,
+                                                           dtype=np.int64).reshape(1, k)
+        new = self.batch.record(np.asarray(xy, dtype=np.float64).reshape(1, k, 2),
+                                np.asarray(s, dtype=np.float64).reshape(1, k),
+                                np.asarray(d, dtype=np.float64).reshape(1, k), speed_a, ids,
+                                [extra_incidents] if extra_incidents else None)[0]
+        return list(new)
 
     # ------------------------------------------------------------------ read-only results
+    def _value(self, name: str) -> Any:
+        return getattr(self.batch, name)[self.env].item()
+
     @property
     def time(self) -> float:
         """Episode time, s."""
-        return self._steps * self.rules.dt
+        return self._value("steps") * self.rules.dt
 
     @property
     def steps(self) -> int:
         """Physics steps recorded since reset."""
-        return self._steps
+        return int(self._value("steps"))
 
     @property
     def distance(self) -> float:
         """Distance travelled, m (sum of straight step lengths)."""
-        return self._distance
+        return float(self._value("distance"))
 
     @property
     def progress(self) -> float:
         """Unwrapped progress along s since reset, m (negative when driving backwards)."""
-        return self._progress
+        return float(self._value("progress"))
 
     @property
     def laps_completed(self) -> int:
         """Laps completed: positive multiples of the loop length reached by the progress."""
-        return self._laps
+        return int(self._value("laps"))
 
     @property
     def lap_times(self) -> list[float]:
         """Duration of each completed lap, s."""
-        return list(self._lap_times)
+        return list(self.batch.lap_times[self.env])
 
     @property
     def incident_counts(self) -> dict[str, int]:
         """Incidents by kind; every kind of :attr:`kinds` is present."""
-        return dict(self._counts)
+        return dict(zip(self.kinds, self.batch.counts[self.env].tolist(), strict=True))
 
     @property
     def incidents(self) -> list[Incident]:
         """Every incident of the episode, in step order."""
-        return list(self._incidents)
+        return list(self.batch.incidents[self.env])
 
     @property
     def distance_without_incident(self) -> float:
         """Distance since the last incident (or the start), m."""
-        return self._distance - self._dist_at_incident
+        return self.distance - float(self._value("dist_at_incident"))
 
     @property
     def longest_distance_without_incident(self) -> float:
         """Longest stretch without incident so far, including the current one, m."""
-        return max(self._longest_closed, self._distance - self._dist_at_incident)
+        return max(float(self._value("longest_closed")), self.distance_without_incident)
 
     @property
     def max_speed(self) -> float:
         """Highest recorded speed, m/s."""
-        return self._max_speed
+        return float(self._value("max_speed"))
 
     @property
     def max_acceleration(self) -> float:
         """Highest block total acceleration, m/s^2."""
-        return self._max_acc
+        return float(self._value("max_acc"))
 
     @property
     def max_jerk(self) -> float:
         """Highest window jerk magnitude, m/s^3."""
-        return self._max_jerk
+        return float(self._value("max_jerk"))
 
     @property
     def max_raw_acceleration(self) -> float:
         """Highest per-step acceleration magnitude, m/s^2."""
-        return self._max_raw_acc
+        return float(self._value("max_raw_acc"))
 
     @property
     def max_raw_jerk(self) -> float:
         """Highest per-step jerk magnitude, m/s^3."""
-        return self._max_raw_jerk
+        return float(self._value("max_raw_jerk"))
 
     @property
     def last_acceleration(self) -> float:
         """Total acceleration of the latest completed block, m/s^2."""
-        return self._last_acc
+        return float(self._value("last_acc"))
 
     @property
     def last_tangential_acceleration(self) -> float:
         """Signed AccT of the latest completed block, m/s^2 (negative when braking)."""
-        return self._last_acc_t
+        return float(self._value("last_acc_t"))
 
     @property
     def last_normal_acceleration(self) -> float:
         """AccN of the latest completed block, m/s^2 (v^2 times mean |curvature|)."""
-        return self._last_acc_n
+        return float(self._value("last_acc_n"))
 
     @property
     def last_jerk(self) -> float:
         """Signed jerk of the latest completed window, m/s^3 (0 before the second window)."""
-        return self._last_jerk
+        return float(self._value("last_jerk"))
 
     @property
     def last_raw_acceleration(self) -> float:
         """Per-step acceleration magnitude of the latest step, m/s^2."""
-        return self._last_raw_acc
+        return float(self._value("last_raw_acc"))
 
     @property
     def last_raw_jerk(self) -> float:
         """Per-step jerk magnitude of the latest step, m/s^3."""
-        return self._last_raw_jerk
+        return float(self._value("last_raw_jerk"))
 
     @property
     def mean_speed(self) -> float:
         """Distance over time, m/s (0 before the first step)."""
-        return self._distance / self.time if self._steps else 0.0
+        return self.distance / self.time if self.steps else 0.0
 
     # ------------------------------------------------------------------ reports
     def step_info(self) -> dict[str, float | int]:
@@ -639,23 +288,7 @@ class DrivingMetrics:
         ``speed`` is the latest speed sample, ``acceleration``/``jerk`` the latest block
         and window values, ``raw_*`` the latest per-step magnitudes.
         """
-        counts = self._counts
-        info: dict[str, float | int] = {
-            "time": self._steps * self.rules.dt,
-            "distance": self._distance,
-            "progress": self._progress,
-            "laps": self._laps,
-            "speed": self._last_speed,
-            "acceleration": self._last_acc,
-            "jerk": self._last_jerk,
-            "raw_acceleration": self._last_raw_acc,
-            "raw_jerk": self._last_raw_jerk,
-            "distance_without_incident": self._distance - self._dist_at_incident,
-            "incidents": len(self._incidents),
-        }
-        for key, kind in zip(self._info_keys, self.kinds, strict=True):
-            info[key] = counts[kind]
-        return info
+        return self.batch.step_info(self.env)
 
     def summary(self) -> dict[str, Any]:
         """Episode summary of plain Python types (``json.dumps``-able).
@@ -663,23 +296,4 @@ class DrivingMetrics:
         Times in s, distances in m, speeds in m/s (plus ``mean_speed_mph``),
         accelerations in m/s^2, jerks in m/s^3. Lap statistics are ``None`` without laps.
         """
-        laps = list(self._lap_times)
-        return {
-            "lap_times": laps,
-            "laps": self._laps,
-            "mean_lap_time": sum(laps) / len(laps) if laps else None,
-            "best_lap_time": min(laps) if laps else None,
-            "distance": self._distance,
-            "time": self.time,
-            "mean_speed": self.mean_speed,
-            "mean_speed_mph": self.mean_speed * MPS_TO_MPH,
-            "max_speed": self._max_speed,
-            "distance_without_incident": self.distance_without_incident,
-            "longest_distance_without_incident": self.longest_distance_without_incident,
-            "incidents": dict(self._counts),
-            "incident_total": len(self._incidents),
-            "max_acceleration": self._max_acc,
-            "max_jerk": self._max_jerk,
-            "max_raw_acceleration": self._max_raw_acc,
-            "max_raw_jerk": self._max_raw_jerk,
-        }
+        return self.batch.summary(self.env)

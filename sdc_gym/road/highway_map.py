@@ -7,6 +7,8 @@ centred at ``d = (i + 0.5) * lane_width`` (2, 6, 10 m for the original's three 4
 
 from __future__ import annotations
 
+import functools
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -15,11 +17,19 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.geometry.coarse_frenet import CoarseFrenet
+from sdc_gym.geometry.original_frenet import OriginalFrenet
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 
 # The original simulator's start state (middle lane, at rest, facing +x).
 ORIGINAL_START_S = 124.8336
 ORIGINAL_START_D = 6.164833
+ORIGINAL_START_YAW = 0.0  # rad: the original's car stands facing +x until a path turns it
+# Where the original's first telemetry puts the car on its map (to the digits it prints).
+ORIGINAL_START_XY = (909.48, 1128.67)
+_SAME_START_M = 0.01  # the coarse getXY of the start within this of it: the original map
+# A loaded map keeps the original's start heading when its road runs this close to +x there
+# (the original map's road heads -0.45 degrees at the start).
+_ORIGINAL_HEADING_TOLERANCE = math.radians(5.0)
 
 
 class MapFormatError(ValueError):
@@ -38,6 +48,8 @@ class HighwayMap:
         lane_count: number of lanes right of the centre line.
         lane_width: metres.
         start_s, start_d: the ego car's start in Frenet coordinates.
+        start_yaw: the ego car's heading at the start (rad, counter-clockwise from +x);
+            ``None``: along the road.
     """
 
     name: str
@@ -47,11 +59,24 @@ class HighwayMap:
     lane_width: float = 4.0
     start_s: float = ORIGINAL_START_S
     start_d: float = ORIGINAL_START_D
+    start_yaw: float | None = None
 
     @property
     def length(self) -> float:
         """Loop length in metres along the smooth reference line."""
         return self.reference.length
+
+    @functools.cached_property
+    def original_frenet(self) -> OriginalFrenet:
+        """The original simulator's Frenet conversion over this map's waypoints (what its
+        telemetry reports; see :mod:`sdc_gym.geometry.original_frenet`)."""
+        return OriginalFrenet(self.waypoints)
+
+    def start_heading(self) -> float:
+        """The ego car's heading at the start (rad): :attr:`start_yaw`, else the road's."""
+        if self.start_yaw is not None:
+            return self.start_yaw
+        return float(self.reference.heading(self.reference.wrap_s(self.start_s)))
 
     @property
     def road_width(self) -> float:
@@ -145,9 +170,16 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
         raise MapFormatError(f"{path}: {error}") from None
     # The original places the car where the template's coarse getXY puts (s, d) =
     # (124.8336, 6.164833): x = 909.48, y = 1128.67 on the original map. Start at that
-    # point, expressed in the exact Frenet frame (s = 124.935, d = 6.098 there).
+    # point, expressed in the exact Frenet frame (s = 124.935, d = 6.098 there), facing +x
+    # as the original's car does where the road runs (about) that way.
     start_xy = CoarseFrenet.from_waypoints(waypoints).get_xy(ORIGINAL_START_S, ORIGINAL_START_D)
+    if math.dist(start_xy, ORIGINAL_START_XY) <= _SAME_START_M:
+        start_xy = ORIGINAL_START_XY  # exactly where the original's car stands (getXY: 0.1 mm off)
     start_s, start_d = reference.to_frenet(np.asarray(start_xy))
+    road_heading = float(reference.heading(start_s))
+    start_yaw = (ORIGINAL_START_YAW if abs(math.remainder(road_heading - ORIGINAL_START_YAW,
+                                                          math.tau))
+                 <= _ORIGINAL_HEADING_TOLERANCE else None)
     return HighwayMap(
         name=str(path),
         waypoints=waypoints,
@@ -156,6 +188,7 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
         lane_width=lane_width,
         start_s=float(start_s),
         start_d=float(start_d),
+        start_yaw=start_yaw,
     )
 
 

@@ -7,9 +7,12 @@ where some cars report ``s = d = 0`` for several frames (the seed planner falls 
 x, y there). All are off by default, so the default sensor is the original's noiseless one.
 
 :func:`telemetry_message` builds the flat dict the original sends in
-``42["telemetry",{...}]``: yaw in degrees, speed in mph, numbers rounded to the 7
-significant digits of the original's 32-bit float printing. The env hands it out as a
-:class:`TelemetryMessage`, which builds that dict only when first read.
+``42["telemetry",{...}]``: yaw in degrees, speed in mph, every number first made a 32-bit
+float and then rounded to the 7 significant digits the original prints (its
+``JSONObject`` keeps floats and prints them with C#'s ``float.ToString()``). The env hands
+it out as a :class:`TelemetryMessage`, which builds that dict only when first read, with
+the Frenet fields in the original's convention unless the env says ``frenet: exact``
+(:mod:`sdc_gym.sensors.original_telemetry`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.original_frenet import OriginalFrenet
+from sdc_gym.sensors.original_telemetry import original_frenet_fields
 from sdc_gym.units import MPS_TO_MPH
 
 FUSION_FIELDS = ("id", "x", "y", "vx", "vy", "s", "d")
@@ -65,57 +70,61 @@ class SensorConfig:
 
 
 class HighwaySensors:
-    """Turns the traffic state into sensor fusion rows, applying the configured faults."""
+    """Turns the traffic state of a batch of envs into sensor fusion rows, applying the
+    configured faults (each env's from its own generator)."""
 
-    def __init__(self, config: SensorConfig, car_count: int, loop_length: float) -> None:
+    def __init__(self, config: SensorConfig, car_count: int, loop_length: float,
+                 envs: int = 1) -> None:
         self.config = config
         self.loop_length = loop_length
-        self._zero_frames_left = np.zeros(car_count, dtype=np.int64)
+        self._zero_frames_left = np.zeros((envs, car_count), dtype=np.int64)
         self._perfect = config.is_perfect
         # Without dropouts every row is present: one read-only mask serves every frame.
-        self._all_present = np.ones(car_count, dtype=bool)
+        self._all_present = np.ones((envs, car_count), dtype=bool)
         self._all_present.flags.writeable = False
 
-    def reset(self) -> None:
-        self._zero_frames_left[:] = 0
+    def reset_at(self, env: int) -> None:
+        self._zero_frames_left[env] = 0
 
     def read(
         self, ids: NDArray[np.int64], x: NDArray[np.float64], y: NDArray[np.float64],
         vx: NDArray[np.float64], vy: NDArray[np.float64], s: NDArray[np.float64],
-        d: NDArray[np.float64], rng: np.random.Generator,
+        d: NDArray[np.float64], rngs: list[np.random.Generator],
     ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
-        """One frame: rows ``[id, x, y, vx, vy, s, d]`` (n, 7) and which rows are present
-        (a read-only array, shared between frames, when the sensor has no dropouts)."""
-        n = len(ids)
-        # The fields as rows, then one transposing copy: a third of np.stack's cost on the
-        # dozen cars of a frame (which is all per-call overhead).
-        fusion = np.array([ids, x, y, vx, vy, s, d], dtype=np.float64).T.copy()
-        present = self._all_present if len(self._all_present) == n else np.ones(n, dtype=bool)
+        """One frame of every env: rows ``[id, x, y, vx, vy, s, d]`` ``(envs, n, 7)`` and
+        which rows are present ``(envs, n)`` (a read-only array, shared between frames,
+        when the sensor has no dropouts)."""
+        fusion = np.stack([ids, x, y, vx, vy, s, d], axis=-1).astype(np.float64)
+        present = self._all_present[: len(ids)]
         if self._perfect:
             return fusion, present
         config = self.config
-        if config.position_noise > 0:
-            fusion[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
-            fusion[:, 5] = np.mod(fusion[:, 5], self.loop_length)
-        if config.velocity_noise > 0:
-            fusion[:, [3, 4]] += rng.normal(0.0, config.velocity_noise, (n, 2))
-        if config.zero_sd_probability > 0:
-            in_zone = s > self.loop_length - config.zero_sd_zone
-            start = in_zone & (self._zero_frames_left == 0) & (
-                rng.random(n) < config.zero_sd_probability)
-            low, high = config.zero_sd_frames
-            self._zero_frames_left[start] = rng.integers(low, high + 1, int(start.sum()))
-            faulty = self._zero_frames_left > 0
-            fusion[faulty, 5:7] = 0.0
-            self._zero_frames_left[faulty] -= 1
-        if config.dropout_probability > 0:
-            present = rng.random(n) >= config.dropout_probability
-            fusion[~present] = 0.0
+        n = ids.shape[1]
+        present = present.copy()
+        for env, rng in enumerate(rngs):
+            row = fusion[env]
+            if config.position_noise > 0:
+                row[:, [1, 2, 5, 6]] += rng.normal(0.0, config.position_noise, (n, 4))
+                row[:, 5] = np.mod(row[:, 5], self.loop_length)
+            if config.velocity_noise > 0:
+                row[:, [3, 4]] += rng.normal(0.0, config.velocity_noise, (n, 2))
+            if config.zero_sd_probability > 0:
+                left = self._zero_frames_left[env]
+                in_zone = s[env] > self.loop_length - config.zero_sd_zone
+                start = in_zone & (left == 0) & (rng.random(n) < config.zero_sd_probability)
+                low, high = config.zero_sd_frames
+                left[start] = rng.integers(low, high + 1, int(start.sum()))
+                faulty = left > 0
+                row[faulty, 5:7] = 0.0
+                left[faulty] -= 1
+            if config.dropout_probability > 0:
+                present[env] = rng.random(n) >= config.dropout_probability
+                row[~present[env]] = 0.0
         return fusion, present
 
 
 def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[np.float64]:
-    """Round to ``digits`` significant digits, like printing a 32-bit float as text."""
+    """Round to ``digits`` significant digits, like printing a number as ``%.7g`` text."""
     values = np.asarray(values, dtype=np.float64)
     magnitude = np.abs(values)
     exponent = np.floor(np.log10(np.where(magnitude > 0, magnitude, 1.0)))
@@ -126,15 +135,24 @@ def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[n
 def telemetry_message(
     x: float, y: float, yaw: float, speed: float, s: float, d: float,
     previous_path: NDArray[np.float64], end_path_s: float, end_path_d: float,
-    sensor_fusion: NDArray[np.float64],
+    sensor_fusion: NDArray[np.float64], frenet: OriginalFrenet | None = None,
 ) -> dict[str, Any]:
     """The flat telemetry object of the original (yaw in rad and speed in m/s go in; the
-    message carries degrees and mph). ``sensor_fusion`` holds the present rows only."""
+    message carries degrees and mph). ``sensor_fusion`` holds the present rows only.
+
+    ``frenet``: the map's :class:`~sdc_gym.geometry.original_frenet.OriginalFrenet` to
+    report s, d, end_path_s/d and the fusion rows' s, d as the original does (from the
+    positions; the s, d passed in are then unused), or ``None`` to send them as given.
+    """
+    if frenet is not None:
+        s, d, end_path_s, end_path_d, sensor_fusion = original_frenet_fields(
+            frenet, x, y, previous_path, sensor_fusion)
     scalars = np.array([x, y, np.degrees(yaw) % 360.0, speed * MPS_TO_MPH, s, d, end_path_s,
                         end_path_d])
-    # One rounding pass over every number of the message (it runs every env step).
+    # One pass over every number of the message (it runs every env step): to 32 bits,
+    # then to the 7 significant digits the original prints.
     flat = round_significant(np.concatenate([scalars, previous_path.T.ravel(),
-                                             sensor_fusion.ravel()]))
+                                             sensor_fusion.ravel()]).astype(np.float32))
     count = len(previous_path)
     ego = flat[:8].tolist()
     rows = flat[8 + 2 * count:].reshape(-1, 7).tolist()

@@ -2,7 +2,9 @@
 
 The track simulator is driven at the drive-by-wire level of the original course: each
 physics step (50 Hz, :data:`PHYSICS_DT`) gets a throttle in ``[0, 1]``, a brake *torque*
-in N m and a *steering-wheel* angle in rad. This module turns those into motion.
+in N m and a *steering-wheel* angle in rad. This module turns those into motion. How the
+original simulator's car does it, with sources, and why the presets have the values they
+have: ``docs/track_vehicle.md``.
 
 Conventions
 -----------
@@ -13,8 +15,9 @@ Conventions
   :meth:`DBWVehicle.point_ahead` for other points of the body.
 * ``yaw`` is the heading in rad, counter-clockwise from +x, wrapped to ``[-pi, pi]``.
 * ``speed`` is in m/s and never negative: the car has no reverse gear in this model.
-* Steering: road-wheel angle ``delta = steering_wheel_angle / steer_ratio``; positive
-  turns left.
+* Steering: road-wheel angle ``delta = steering_wheel_angle / road_wheel_ratio``
+  (:attr:`VehicleParameters.road_wheel_ratio`: the car's own ratio, which need not be the
+  ``steer_ratio`` the controllers are told); positive turns left.
 
 Longitudinal model (per step)
 -----------------------------
@@ -23,23 +26,29 @@ Longitudinal model (per step)
     F_engine(v) = min(max_drive_force, max_drive_power / v)     full-throttle force, N
     F_creep(v)  = creep_force_at_rest * max(0, 1 - v / creep_speed)   idle creep, N
     F_brake     = min(brake_torque / wheel_radius, tire_friction * m * g)
-    F_roll      = rolling_resistance * m * g
-    F_drag(v)   = drag_coefficient * v**2                       (0.5 rho Cd A v^2)
-    a = (F_creep + throttle * F_engine - F_brake - F_roll - F_drag) / m,  m = total_mass
+    F_resist(v) = rolling_resistance * m * g + linear_drag * v + drag_coefficient * v**2
+    a = (F_creep + throttle * F_engine - F_brake - F_resist(v)) / m,  m = total_mass
+
+``max_drive_power`` may be infinite (a constant drive force, as the original's Unity car
+has); ``linear_drag`` is a force proportional to speed (a Unity rigid body's drag and its
+wheels' damping), ``drag_coefficient`` the aerodynamic ``0.5 rho Cd A``.
 
 Speed is advanced by explicit Euler (its fixed point is exactly the root of the force
 balance, so a terminal speed is exact) and distance by the trapezoid rule, which is exact
 for the constant acceleration within a step. Brakes and rolling resistance can stop the
 car but never reverse it: a step that would cross zero speed ends at rest, with the
-distance of the exact stop inside the step.
+distance of the exact stop inside the step. A car coasting (no drive force at all) whose
+speed falls below ``rest_speed`` comes to rest at the end of that step: a physics engine
+puts such a slow body to rest (PhysX's sticky tyres and sleeping), where a speed-
+proportional drag alone would only approach zero.
 
 At rest, brake and rolling resistance act as *static* friction: the car pulls away only
-when the drive force exceeds ``F_brake + F_roll``. An automatic gearbox creeps at idle,
-and the original course says a brake torque of about 400 N m (sim) / 700 N m (site)
-holds the stopped car. The creep force at rest is therefore *derived* so that this is
-exactly the holding threshold (``creep_hold_torque``; a brake torque equal to it holds)::
+when the drive force exceeds ``F_brake + F_roll``. An automatic gearbox creeps at idle
+(the real car of the course, Carla; the original simulator's car does not): the creep is
+set by the brake torque that exactly holds the stopped car (``creep_hold_torque``, 0 = no
+creep; a brake torque equal to it holds)::
 
-    creep_force_at_rest = creep_hold_torque / wheel_radius + F_roll
+    creep_force_at_rest = creep_hold_torque / wheel_radius + F_roll   (0 without creep)
 
 The creep fades linearly to zero at ``creep_speed`` (a torque converter at idle pushes
 less as the wheels speed up); on the flat the car creeps at a little under that speed.
@@ -47,11 +56,13 @@ less as the wheels speed up); on the flat the car creeps at a little under that 
 Lateral model
 -------------
 Kinematic bicycle about the rear axle: curvature ``kappa = tan(delta) / wheel_base`` and
-``yaw_rate = v * kappa``. This is the exact inverse of the reference stack's yaw
-controller (``steering = steer_ratio * atan(wheel_base * yaw_rate / v)``), so a fixed
-wheel angle drives a circle of radius ``wheel_base / tan(delta)``. Within a step the
-curvature is constant and the rear axle moves along the exact arc (chord
-``ds * sin(h) / h`` at heading ``yaw + h``, ``h = kappa * ds / 2``): no integration drift.
+``yaw_rate = v * kappa``. With ``road_wheel_ratio == steer_ratio`` this is the exact inverse
+of the reference stack's yaw controller (``steering = steer_ratio * atan(wheel_base *
+yaw_rate / v)``), so a fixed wheel angle drives a circle of radius ``wheel_base /
+tan(delta)``. Within a step the curvature is constant and the rear axle moves along the
+exact arc (chord ``ds * sin(h) / h`` at heading ``yaw + h``, ``h = kappa * ds / 2``): no
+integration drift. The steering-wheel angle is clamped to the car's lock
+(:attr:`VehicleParameters.steering_wheel_lock`).
 
 Actuators
 ---------
@@ -61,6 +72,10 @@ command directly. The simulator preset has no lag, like the original Unity simul
 which applies wheel torques and wheel angles the frame they arrive; the site preset has
 small lags typical of a production drive-by-wire car (throttle by wire and engine
 response, hydraulic brake pressure build-up, electric power steering).
+
+The interface is plain numbers in and a plain state out (:meth:`DBWVehicle.step`), so
+any driver can sit in front of it: the env, the built-in human, or a bridge speaking the
+original simulator's protocol (``docs/track_vehicle.md``).
 
 Cost: one step is plain scalar Python (no numpy), a few microseconds.
 """
@@ -85,15 +100,21 @@ _TWO_PI = 2.0 * math.pi
 _SMALL_HALF_TURN = 1e-4
 
 
+def _is_real(value: object) -> bool:
+    """A real number (int or float; bools are not numbers here)."""
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
 @dataclass(frozen=True)
 class VehicleParameters:
     """Everything that defines one car; see the module docstring for the equations.
 
-    The first block are the original course's parameters (``spec/track_sim.md``); the
-    second block are this model's own physics, chosen to be plausible for the car (see
-    :data:`SIM_VEHICLE` and :data:`SITE_VEHICLE` for the values and why). Override a
-    field with ``dataclasses.replace(SIM_VEHICLE, drag_coefficient=0.0)`` or
-    :meth:`replace`.
+    The first block are the original course's parameters (``spec/track_sim.md``, what the
+    controllers are told); the second block are the car's physics: for the sim car those
+    of the original simulator's Unity car, for the site car plausible figures for the real
+    one (see :data:`SIM_VEHICLE`, :data:`SITE_VEHICLE` and ``docs/track_vehicle.md`` for
+    the values and why). Override a field with ``dataclasses.replace(SIM_VEHICLE,
+    linear_drag=0.0)`` or :meth:`replace`.
 
     Attributes:
         name: preset name ("sim", "site" or anything for custom cars).
@@ -113,17 +134,29 @@ class VehicleParameters:
         max_drive_force: N at the wheels at full throttle, at low speed (traction and
             first-gear limited).
         max_drive_power: W at the wheels at full throttle; above
-            ``max_drive_power / max_drive_force`` m/s the force falls as ``P / v``.
+            ``max_drive_power / max_drive_force`` m/s the force falls as ``P / v``
+            (``math.inf``: no power limit, the force is constant).
         drag_coefficient: N/(m/s)^2, the lumped ``0.5 * rho_air * Cd * frontal_area``.
         rolling_resistance: dimensionless rolling resistance coefficient ``C_rr``.
         creep_hold_torque: N m, brake torque that exactly holds the car at rest with
-            zero throttle (the idle creep is derived from it).
+            zero throttle; the idle creep is derived from it, and 0 means the car does
+            not creep (it stays at rest with no pedal at all).
         creep_speed: m/s, speed at which the idle creep force has faded to zero.
         tire_friction: tyre-road friction coefficient; caps the brake force at
             ``tire_friction * total_mass * g`` (harder pedal just locks the wheels).
         throttle_time_constant: s, first-order lag of the throttle (0 = none).
         brake_time_constant: s, first-order lag of the brake torque (0 = none).
         steering_time_constant: s, first-order lag of the steering angle (0 = none).
+        linear_drag: N/(m/s), resistance proportional to speed (a Unity rigid body's
+            ``drag`` times its mass, plus its wheel colliders' damping).
+        rest_speed: m/s, a car coasting with no drive force that falls below this speed
+            comes to rest (0 = never: only brakes and rolling resistance stop it).
+        response_steer_ratio: steering-wheel angle / road-wheel angle of the car itself
+            (what the physics turns); ``None``: ``steer_ratio``. The controllers are told
+            ``steer_ratio`` (the course's launch file), the car answers with this one.
+        steering_lock: rad, the steering-wheel angle at which the car's wheels reach
+            their stops (commands beyond it are clamped; the env's action bound);
+            ``None``: ``max_steer_angle``.
     """
 
     name: str
@@ -147,23 +180,37 @@ class VehicleParameters:
     throttle_time_constant: float = 0.0
     brake_time_constant: float = 0.0
     steering_time_constant: float = 0.0
+    linear_drag: float = 0.0
+    rest_speed: float = 0.0
+    response_steer_ratio: float | None = None
+    steering_lock: float | None = None
 
     def __post_init__(self) -> None:
         positive = ("vehicle_mass", "wheel_radius", "wheel_base", "steer_ratio",
-                    "max_steer_angle", "max_drive_force", "max_drive_power", "creep_speed",
-                    "tire_friction")
+                    "max_steer_angle", "max_drive_force", "creep_speed", "tire_friction")
         non_negative = ("fuel_capacity", "drag_coefficient", "rolling_resistance",
                         "creep_hold_torque", "throttle_time_constant", "brake_time_constant",
                         "steering_time_constant", "max_lat_accel", "accel_limit",
-                        "brake_deadband")
+                        "brake_deadband", "linear_drag", "rest_speed")
+        optional_positive = ("response_steer_ratio", "steering_lock")
         for field in positive:
             value = getattr(self, field)
-            if not (math.isfinite(value) and value > 0.0):
+            if not (_is_real(value) and math.isfinite(value) and value > 0.0):
                 raise ValueError(f"VehicleParameters {self.name!r}: {field} must be a finite "
                                  f"number > 0, got {value!r}")
+        if not (_is_real(self.max_drive_power) and self.max_drive_power > 0.0):
+            raise ValueError(f"VehicleParameters {self.name!r}: max_drive_power must be a "
+                             f"number > 0 (W; math.inf: no power limit), got "
+                             f"{self.max_drive_power!r}")
+        for field in optional_positive:
+            value = getattr(self, field)
+            if value is not None and not (_is_real(value) and math.isfinite(value)
+                                          and value > 0.0):
+                raise ValueError(f"VehicleParameters {self.name!r}: {field} must be None or "
+                                 f"a finite number > 0, got {value!r}")
         for field in non_negative:
             value = getattr(self, field)
-            if not (math.isfinite(value) and value >= 0.0):
+            if not (_is_real(value) and math.isfinite(value) and value >= 0.0):
                 raise ValueError(f"VehicleParameters {self.name!r}: {field} must be a finite "
                                  f"number >= 0, got {value!r}")
         if not (math.isfinite(self.decel_limit) and self.decel_limit <= 0.0):
@@ -188,8 +235,27 @@ class VehicleParameters:
 
     @property
     def creep_force_at_rest(self) -> float:
-        """N, idle creep at standstill, so that ``creep_hold_torque`` exactly holds."""
+        """N, idle creep at standstill, so that ``creep_hold_torque`` exactly holds (0 for
+        a car that does not creep, ``creep_hold_torque == 0``)."""
+        if self.creep_hold_torque <= 0.0:
+            return 0.0
         return self.creep_hold_torque / self.wheel_radius + self.rolling_force
+
+    @property
+    def road_wheel_ratio(self) -> float:
+        """Steering-wheel angle / road-wheel angle of the car itself (the physics')."""
+        return self.steer_ratio if self.response_steer_ratio is None else (
+            self.response_steer_ratio)
+
+    @property
+    def steering_wheel_lock(self) -> float:
+        """rad, the largest steering-wheel angle the car turns its wheels by."""
+        return self.max_steer_angle if self.steering_lock is None else self.steering_lock
+
+    def resistance_force(self, speed: float) -> float:
+        """N resisting motion at ``speed`` m/s > 0: rolling + linear + aerodynamic drag."""
+        return (self.drag_coefficient * speed * speed + self.linear_drag * speed
+                + self.rolling_force)
 
     @property
     def max_brake_force(self) -> float:
@@ -198,8 +264,8 @@ class VehicleParameters:
 
     @property
     def max_road_wheel_angle(self) -> float:
-        """rad, largest road-wheel angle (``max_steer_angle / steer_ratio``)."""
-        return self.max_steer_angle / self.steer_ratio
+        """rad, largest road-wheel angle (``steering_wheel_lock / road_wheel_ratio``)."""
+        return self.steering_wheel_lock / self.road_wheel_ratio
 
     @property
     def min_turn_radius(self) -> float:
@@ -218,10 +284,18 @@ class VehicleParameters:
             return 0.0
         return self.creep_force_at_rest * (1.0 - speed / self.creep_speed)
 
-    def replace(self, **changes: float | str) -> VehicleParameters:
+    def replace(self, **changes: float | str | None) -> VehicleParameters:
         """A copy with some fields changed (``dataclasses.replace``, re-validated)."""
         return dataclasses.replace(self, **changes)
 
+
+# The original simulator's Unity car (udacity/self-driving-car-sim, Car.prefab): see
+# docs/track_vehicle.md for the sources.
+_UNITY_WHEEL_TORQUE_NM = 2000.0 / 4  # m_FullTorqueOverAllWheels, four-wheel drive
+_UNITY_WHEEL_RADII_M = (0.335, 0.335, 0.37, 0.37)  # front, front, rear, rear
+_UNITY_BODY_MASS_KG = 1000.0  # Rigidbody m_Mass
+_UNITY_BODY_DRAG = 0.1  # Rigidbody m_Drag, 1/s
+_UNITY_WHEEL_DAMPING = 0.25  # WheelCollider m_WheelDampingRate, N m s/rad
 
 SIM_VEHICLE = VehicleParameters(
     name="sim",
@@ -235,19 +309,36 @@ SIM_VEHICLE = VehicleParameters(
     steer_ratio=14.8,
     max_lat_accel=3.0,
     max_steer_angle=8.0,
-    # A light compact car: 4 kN at the wheels launches at 3.7 m/s^2 (0-100 km/h in about
-    # 9 s with the 90 kW, 22.5 m/s crossover) - far more than the 1 m/s^2 the reference
-    # controller asks for, as on the original simulator, where full throttle is brisk.
-    max_drive_force=4000.0,
-    max_drive_power=90_000.0,
-    # 0.5 * 1.2 kg/m^3 * Cd 0.30 * 2.2 m^2 = 0.40; C_rr 0.015 (car tyres on asphalt).
-    drag_coefficient=0.40,
-    rolling_resistance=0.015,
-    creep_hold_torque=400.0,  # spec: about 400 N m holds the stopped sim car
-    creep_speed=2.0,  # creeps at ~1.8 m/s (6.5 km/h), a typical automatic at idle
-    tire_friction=1.0,  # dry asphalt
+    # The Unity car the launch file's 1080 kg (rigid body 1000 kg + 4 wheels of 20 kg) and
+    # 0.335 m (front wheel radius) were read from: its CarController spreads
+    # m_FullTorqueOverAllWheels = 2000 N m over the four wheels at full throttle (500 N m on
+    # each of two 0.335 m and two 0.37 m wheels: 5688 N, 5.3 m/s^2) and has no torque curve
+    # or power limit (its gears only set the engine sound).
+    max_drive_force=_UNITY_WHEEL_TORQUE_NM * sum(1.0 / r for r in _UNITY_WHEEL_RADII_M),
+    max_drive_power=math.inf,
+    # Its rigid body's drag 0.1 /s on 1000 kg is 100 N per m/s, its wheel colliders' damping
+    # 0.25 N m s/rad adds 0.25 / r^2 per wheel (8.1 N per m/s): 108.1 N per m/s in all,
+    # 1.2 kN at 40 km/h. No aerodynamic drag, no rolling resistance in a wheel collider.
+    drag_coefficient=0.0,
+    rolling_resistance=0.0,
+    linear_drag=_UNITY_BODY_DRAG * _UNITY_BODY_MASS_KG + _UNITY_WHEEL_DAMPING * sum(
+        1.0 / (r * r) for r in _UNITY_WHEEL_RADII_M),
+    # No idle creep: the car's motor torque is throttle x torque, 0 at zero throttle.
+    creep_hold_torque=0.0,
+    creep_speed=2.0,  # (no creep: unused)
+    tire_friction=1.0,  # the wheel colliders' friction curves peak at 1 (dry asphalt)
+    # Below 0.1 m/s a coasting car comes to rest: Unity's default sleep threshold 0.005
+    # (mass-normalised kinetic energy, v^2 / 2) and PhysX's sticky tyres.
+    rest_speed=0.1,
+    # The original reports road-wheel angles up to 0.447241 rad (25.6 degrees) for wheel
+    # commands 18.3345 times larger (CarND-Capstone issues #110/#111): the wheels reach
+    # their stops at 8.2 rad, the Dataspeed SteeringCmd's range.
+    response_steer_ratio=8.2 / 0.447241,
+    steering_lock=8.2,
 )
-"""The original simulator's car (spec table, sim column). No actuator lag, like Unity."""
+"""The original simulator's car (spec table, sim column; the physics of the original's
+Unity car, docs/track_vehicle.md): no idle creep, a constant drive force, speed-
+proportional drag, the original's steering ratio and lock. No actuator lag, like Unity."""
 
 SITE_VEHICLE = VehicleParameters(
     name="site",
@@ -268,6 +359,7 @@ SITE_VEHICLE = VehicleParameters(
     # 0.5 * 1.2 * Cd 0.30 * 2.4 m^2 = 0.43 (mid-size sedan); C_rr 0.015.
     drag_coefficient=0.43,
     rolling_resistance=0.015,
+    # The real car is an automatic and creeps at idle: the course holds it with 700 N m.
     creep_hold_torque=700.0,  # spec: about 700 N m holds the stopped site car
     creep_speed=2.0,
     tire_friction=1.0,
@@ -360,14 +452,21 @@ class DBWVehicle:
         self._max_brake_force = params.max_brake_force
         self._rolling = params.rolling_force
         self._drag = params.drag_coefficient
+        self._linear_drag = params.linear_drag
+        self._rest_speed = params.rest_speed
         self._creep0 = params.creep_force_at_rest
-        self._creep_hold_force = params.creep_hold_torque * self._inverse_radius
+        # At rest the drive force must beat the brake plus this: the creep beyond rolling
+        # resistance is creep_hold_torque / wheel_radius (computed like the brake force so
+        # that a brake torque equal to the holding torque ties exactly); without creep the
+        # rolling resistance alone holds.
+        self._rest_push = (params.creep_hold_torque * self._inverse_radius if self._creep0
+                           else -self._rolling)
         self._creep_slope = self._creep0 / params.creep_speed
-        self._creep_speed = params.creep_speed
+        self._creep_speed = params.creep_speed if self._creep0 else 0.0
         self._force_max = params.max_drive_force
         self._power_max = params.max_drive_power
-        self._max_swa = params.max_steer_angle
-        self._curvature_per_swa = 1.0 / params.steer_ratio
+        self._max_swa = params.steering_wheel_lock
+        self._curvature_per_swa = 1.0 / params.road_wheel_ratio
         self._wheel_base = params.wheel_base
         self._lag_dt = math.nan
         self._gains = (1.0, 1.0, 1.0)
@@ -471,10 +570,8 @@ class DBWVehicle:
         mass = self._mass
         if v0 <= 0.0:
             # At rest brake and rolling resistance are static friction: pull away only
-            # when the drive force overcomes them (ties hold). The creep at rest minus
-            # rolling is creep_hold_torque / wheel_radius, computed like the brake force
-            # so that a brake torque equal to the holding torque cancels it exactly.
-            net = throttle * engine + self._creep_hold_force - brake
+            # when the drive force overcomes them (ties hold).
+            net = throttle * engine + self._rest_push - brake
             if net > 0.0:
                 v1 = net / mass * dt
                 ds = 0.5 * v1 * dt
@@ -482,7 +579,8 @@ class DBWVehicle:
                 v1 = 0.0
                 ds = 0.0
         else:
-            accel = (drive - brake - self._rolling - self._drag * v0 * v0) / mass
+            accel = (drive - brake - self._rolling - self._linear_drag * v0
+                     - self._drag * v0 * v0) / mass
             v1 = v0 + accel * dt
             if v1 < 0.0:
                 # Stopped inside the step: exact distance to rest, no reversing.
@@ -490,6 +588,8 @@ class DBWVehicle:
                 v1 = 0.0
             else:
                 ds = 0.5 * (v0 + v1) * dt
+                if v1 < self._rest_speed and drive <= 0.0:
+                    v1 = 0.0  # coasting this slowly, the car comes to rest
 
         # Lateral: kinematic bicycle about the rear axle, exact arc over the step.
         road_wheel = swa * self._curvature_per_swa

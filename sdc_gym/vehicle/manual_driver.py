@@ -45,10 +45,14 @@ Stop lines
     line (at least 0.47 m before it).
 Pedals
     The wanted acceleration becomes throttle or brake torque through the car's own force
-    balance (the driver "knows the feel" of the car): ``F = m a + drag + rolling - creep``;
+    balance (the driver "knows the feel" of the car): ``F = m a + resistance - creep``;
     positive ``F`` is throttle ``F / F_engine(v)``, negative is brake torque
     ``-F * wheel_radius``. At a standstill with no wish to move it holds
-    ``hold_brake_factor`` times the car's holding torque.
+    ``hold_brake_factor`` times the car's holding torque (:func:`holding_torque`: the
+    torque that balances the idle creep, or for a car that does not creep the torque of
+    a ``comfort_decel`` stop). The wheel turns the car's own steering ratio and lock
+    (``road_wheel_ratio``, ``steering_wheel_lock``): the driver steers by feel, not by the
+    figures the controllers are given.
 
 Distances
 ---------
@@ -111,6 +115,15 @@ def braking_distance(speed: float, accel: float, decel: float, jerk: float,
     # At rest during the ramp (jerk > 0 here): speed + accel t - jerk t^2 / 2 = 0.
     t = (accel + math.sqrt(accel * accel + 2.0 * jerk * speed)) / jerk
     return travelled + speed * t + 0.5 * accel * t * t - jerk * t**3 / 6.0
+
+
+def holding_torque(params: VehicleParameters, style: DriverStyle) -> float:
+    """N m a driver's foot holds a stopped car with (before ``hold_brake_factor``): the
+    torque that balances the idle creep, or, for a car that does not creep, the torque of
+    a stop at ``style.comfort_decel`` (the pedal stays where the stop left it)."""
+    if params.creep_hold_torque > 0.0:
+        return params.creep_hold_torque
+    return params.total_mass * style.comfort_decel * params.wheel_radius
 
 
 @dataclass(frozen=True)
@@ -249,7 +262,7 @@ class ManualDriver:
         accel, hold = self._wanted_acceleration(speed, target_speed, stop_distance, frames,
                                                 lookahead, dt)
         if hold:
-            return 0.0, style.hold_brake_factor * params.creep_hold_torque, steering
+            return 0.0, style.hold_brake_factor * holding_torque(params, style), steering
         throttle, brake = self._pedals(speed, accel)
         return throttle, brake, steering
 
@@ -273,8 +286,8 @@ class ManualDriver:
             keep = math.exp(-dt / style.steering_noise_time) if style.steering_noise_time else 0.0
             self._noise = keep * self._noise + math.sqrt(1.0 - keep * keep) * (
                 style.steering_noise_std * float(self.rng.standard_normal()))
-        wanted = params.steer_ratio * (road_wheel + self._noise)
-        wanted = min(max(wanted, -params.max_steer_angle), params.max_steer_angle)
+        lock = params.steering_wheel_lock
+        wanted = min(max(params.road_wheel_ratio * (road_wheel + self._noise), -lock), lock)
         follow = -math.expm1(-dt / style.steering_response_time) if (
             style.steering_response_time > 0.0) else 1.0
         self._steering += follow * (wanted - self._steering)
@@ -346,7 +359,7 @@ class ManualDriver:
     def _pedals(self, speed: float, accel: float) -> tuple[float, float]:
         """Throttle and brake torque giving ``accel`` m/s^2, from the car's force balance."""
         params = self.params
-        resistance = params.drag_coefficient * speed * speed + params.rolling_force
+        resistance = params.resistance_force(speed)
         force = params.total_mass * accel + resistance - params.creep_force(speed)
         if force > 0.0:
             return min(force / params.engine_force(speed), 1.0), 0.0

@@ -60,13 +60,14 @@ Where this implementation goes beyond the seed's prose, and why
 * Each state also carries its Frenet ``d`` (exact, like ``s``, from one projection per
   batch of new points), so the lane error and the lane-change flag are exact.
 
-Cost: a cycle that adds 3 points (one env step) takes ~25 microseconds (was ~40): per
-batch of up to ``batch_points`` new states one evaluation of the reference line's spline
-(:meth:`SeedMotionPlanner._geometry`, the numbers of
-:meth:`ReferenceLine.to_xy_and_curvature` bit for bit, on Python complex numbers plus one
-small numpy batch) gives the look-ahead points and the line at the states' predicted s
-(from which one Newton step gives their exact s, d); everything per point runs on Python
-floats. The queue is a window of a preallocated array (no concatenation per cycle).
+Implementation: :class:`MotionBatch` holds the states of a batch of planners as arrays
+and plans all of them in one numba-compiled call
+(:func:`~sdc_gym.stack.highway.motion_kernel.plan_batch`: per batch of up to
+``batch_points`` new states, the reference line at their predicted s and at the
+look-ahead points, then one Newton step per state for its exact s, d); the arithmetic is
+the per-point arithmetic on floats the layer was defined with, bit for bit.
+:class:`SeedMotionPlanner` is the planner of one env (a batch of one). The queue is a
+window of a preallocated array (no concatenation per cycle).
 """
 
 from __future__ import annotations
@@ -80,6 +81,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.stack.highway.behavior import STEP, BehaviorDecision
+from sdc_gym.stack.highway.motion_kernel import line_frame, plan_batch
 
 # Columns of the queue: one row per planned state.
 _X, _Y, _S, _D, _HEADING, _INCREMENT = range(6)
@@ -154,34 +156,111 @@ class MotionState:
     speed: float
 
 
+class MotionBatch:
+    """The motion layer of ``envs`` planners, their states as arrays (see the module
+    docstring); :func:`~sdc_gym.stack.highway.motion_kernel.plan_batch` plans every env
+    of a cycle in one compiled call."""
+
+    def __init__(self, road: HighwayMap, params: MotionParameters | None = None,
+                 envs: int = 1) -> None:
+        self.road = road
+        self.reference = road.reference
+        self.params = p = params or MotionParameters()
+        self.envs = envs
+        reference = road.reference
+        self._kernel_params = np.array([
+            p.path_length, p.replan_keep, p.look_ahead, p.steering_gate,
+            p.steering_gate_lane_change, p.min_steering_increment, p.start_increment,
+            p.max_increment, math.sqrt(2.0 * p.arrival_jerk / STEP) * STEP * STEP,
+            p.lane_change_tolerance, p.unwind_margin, p.frames_per_cycle, p.latency_frames,
+            p.batch_points, _MATCH_TOLERANCE_M**2, STEP, road.lane_count, road.lane_width],
+            dtype=np.float64)
+        self._coef = reference._coef_xy
+        self._line = np.array([reference._knot_step, reference._inverse_step,
+                               reference._segments, reference._param_scale,
+                               reference.length])
+        # Room for the longest queue (a path, the points in flight, a cycle's consumption)
+        # twice over: the kernel moves a queue back to the start when it reaches the end.
+        rows = max(_BUFFER_ROWS, 2 * (p.path_length + p.latency_frames
+                                      + 2 * p.frames_per_cycle + p.batch_points + 8))
+        self.buffer = np.zeros((envs, rows, _COLUMNS))
+        self.start = np.zeros(envs, dtype=np.int64)  # queue: buffer[start:stop]
+        self.stop = np.zeros(envs, dtype=np.int64)
+        self.end_row = np.zeros((envs, _COLUMNS))  # the queue's last row ...
+        self.has_end = np.zeros(envs, dtype=bool)  # ... if it has one
+        self.last_row = np.zeros((envs, _COLUMNS))  # the car's state when the queue emptied
+        self.has_last = np.zeros(envs, dtype=bool)
+        self.counters = np.zeros((envs, 3), dtype=np.int64)  # cycles, consumed, lead
+        # ds_ratio, curvature_target, anchor x, anchor y, target_d
+        self.floats = np.zeros((envs, 5))
+        self.flags = np.zeros((envs, 2), dtype=bool)  # lane_changing, queued_muted
+        self.paths = np.zeros((envs, p.path_length, 2))
+        self.lengths = np.zeros(envs, dtype=np.int64)
+        self._all = np.ones(envs, dtype=bool)
+        for env in range(envs):
+            self.reset_at(env)
+
+    def reset_at(self, env: int) -> None:
+        """Forget env ``env``'s queue (start of an episode)."""
+        self.start[env] = self.stop[env] = 0
+        self.has_end[env] = self.has_last[env] = False
+        self.counters[env] = 0
+        self.floats[env] = (1.0, 0.0, math.nan, math.nan, math.nan)
+        self.flags[env] = False
+
+    def plan(self, ego: NDArray[np.float64], target_lane: NDArray, target_speed: NDArray,
+             acceleration: NDArray, replan: NDArray[np.bool_], steering: NDArray[np.bool_],
+             active: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.float64],
+                                                               NDArray[np.int64]]:
+        """One cycle of every (``active``) env: ``ego`` ``(envs, 6)`` as observed (x, y,
+        s, d, yaw, speed; the observation's float32 values), the decisions as arrays.
+        Returns the paths ``(envs, path_length, 2)`` (the first ``lengths`` points)."""
+        plan_batch(self._kernel_params, self._coef, self._line, self.buffer, self.start,
+                   self.stop, self.end_row, self.has_end, self.last_row, self.has_last,
+                   self.counters, self.floats, self.flags,
+                   np.ascontiguousarray(ego, dtype=np.float64),
+                   np.asarray(target_lane, dtype=np.int64),
+                   np.asarray(target_speed, dtype=np.float64),
+                   np.asarray(acceleration, dtype=np.float64), np.asarray(replan, dtype=bool),
+                   np.asarray(steering, dtype=bool), self._all if active is None else active,
+                   self.paths, self.lengths, 2.0, 3.0)
+        return self.paths, self.lengths
+
+    def end_of(self, env: int) -> NDArray[np.float64]:
+        if self.has_end[env]:
+            return self.end_row[env]
+        if self.has_last[env]:
+            return self.last_row[env]
+        raise RuntimeError("no state yet: call plan() first")
+
+
 class SeedMotionPlanner:
     """Turns behavior decisions into paths for ``HighwayLoop-v0``; see the module docstring.
 
     Call :meth:`reset` at the start of every episode and :meth:`plan` once per env step.
+    The planner of one env: a :class:`MotionBatch` of one (or env ``env`` of a batch).
     """
 
     def __init__(self, road: HighwayMap, params: MotionParameters | None = None) -> None:
-        self.road = road
-        self.reference = road.reference
-        self.params = params or MotionParameters()
-        self.reset()
+        self._attach(MotionBatch(road, params, 1), 0)
+
+    @classmethod
+    def view(cls, batch: MotionBatch, env: int) -> SeedMotionPlanner:
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        return made
+
+    def _attach(self, batch: MotionBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.road = batch.road
+        self.reference = batch.reference
+        self.params = batch.params
 
     # ------------------------------------------------------------------ public API
     def reset(self) -> None:
         """Forget the queue (start of an episode)."""
-        self._buffer: NDArray[np.float64] = np.zeros((_BUFFER_ROWS, _COLUMNS))
-        self._start = self._stop = 0  # the queue is self._buffer[self._start:self._stop]
-        self._end: list[float] | None = None  # the queue's last row (None when empty)
-        self._last_row: list[float] | None = None  # the car's state when the queue empties
-        self._cycles = 0             # paths sent since reset
-        self._consumed = 0           # points the car consumed since the previous cycle
-        self._lead = 0               # queue points the car consumes before the path arrives
-        self._ds_ratio = 1.0         # metres of s per metre driven, from the last batch
-        self._curvature_target = 0.0  # reference curvature at the last look-ahead point
-        self._anchor = [math.nan, math.nan]  # the point before the queue's first one
-        self._target_d = math.nan
-        self._lane_changing = False
-        self._queued_muted = False   # the queue's newest states were planned unsteered
+        self.batch.reset_at(self.env)
 
     def plan(self, observation: dict[str, Any], decision: BehaviorDecision) -> NDArray[np.float64]:
         """The path to send this cycle, shape ``(m, 2)``, ``m <= path_length``.
@@ -191,34 +270,30 @@ class SeedMotionPlanner:
                 it in the queue; see the module docstring on ``previous_path_count``).
             decision: what to do: target lane and speed, rate, replan, steering.
         """
-        p = self.params
-        ego = observation["ego"]
-        self._locate_car(ego)
-        if self._end is None and self._last_row is None:
-            x, y, s, d, yaw, speed = (float(v) for v in ego)
-            self._last_row = [x, y, s, d, yaw, speed * STEP]
-            self._anchor = [x, y]
-        # The car consumes `lead` more queued points from the paths already sent before
-        # this one arrives; none while it is still waiting for its first path.
-        self._lead = min(p.latency_frames, self._cycles * p.frames_per_cycle)
-        replay: list[float] = []  # increments of unsteered states to plan again, steered
-        if decision.replan:
-            self._truncate(self._lead + p.replan_keep)
-        elif decision.steering and self._queued_muted:
-            keep = self._start + self._lead + p.replan_keep
-            replay = self._buffer[keep:self._stop, _INCREMENT].tolist()
-            self._truncate(self._lead + p.replan_keep)
-        self._queued_muted = not decision.steering
-        lane = min(max(int(decision.target_lane), 0), self.road.lane_count - 1)
-        self._target_d = (lane + 0.5) * self.road.lane_width
-        missing = p.path_length - (self._stop - self._start)
-        if missing > 0:
-            self._extend(missing, decision, replay)  # (may move the queue in its buffer)
-        self._cycles += 1
-        end = self._end_row()
-        self._lane_changing = abs(end[_D] - self._target_d) > p.lane_change_tolerance
-        start = self._start
-        return self._buffer[start:min(start + p.path_length, self._stop), :2].copy()
+        batch = self.batch
+        if batch.envs != 1:
+            raise RuntimeError("plan() of one env of a batch: plan the batch")
+        ego = np.asarray(observation["ego"]).astype(np.float64).reshape(1, 6)
+        paths, lengths = batch.plan(ego, (decision.target_lane,), (decision.target_speed,),
+                                    (decision.acceleration,), (decision.replan,),
+                                    (decision.steering,))
+        return paths[0, :int(lengths[0])].copy()
+
+    def _end_row(self) -> list[float]:
+        return self.batch.end_of(self.env).tolist()
+
+    def _geometry(self, s_pred: list[float], distance: float, aim_d: float,
+                  ) -> tuple[list[tuple[float, ...]], list[complex], float]:
+        """The kernel's road geometry for a batch of predicted s: the line's ``(x, y, nx,
+        ny, curvature)`` at each, the aim points ``distance`` further at ``aim_d``, and the
+        curvature at the last aim point (for tests of the kernel's arithmetic)."""
+        batch = self.batch
+        frame = [line_frame(batch._coef, *batch._line[:2], int(batch._line[2]),
+                            *batch._line[3:], s, 3.0)
+                 for s in [*s_pred, *(sp + distance for sp in s_pred)]]
+        k = len(s_pred)
+        aims = [complex(x + aim_d * nx, y + aim_d * ny) for x, y, nx, ny, _ in frame[k:]]
+        return frame[:k], aims, frame[-1][4]
 
     @property
     def end_state(self) -> MotionState:
@@ -229,7 +304,8 @@ class SeedMotionPlanner:
     @property
     def speed(self) -> float:
         """m/s at the end of the queue (0 before the first :meth:`plan`)."""
-        if self._end is None and self._last_row is None:
+        env = self.env
+        if not self.batch.has_end[env] and not self.batch.has_last[env]:
             return 0.0
         return self._end_row()[_INCREMENT] / STEP
 
@@ -242,216 +318,21 @@ class SeedMotionPlanner:
     def lane_change_in_progress(self) -> bool:
         """True while the queue's end is more than ``lane_change_tolerance`` from the
         target lane's centre (as of the last :meth:`plan`)."""
-        return self._lane_changing
+        return bool(self.batch.flags[self.env, 0])
 
     @property
     def consumed(self) -> int:
         """Points the car consumed between the previous cycle and this one (0.02 s each)."""
-        return self._consumed
+        return int(self.batch.counters[self.env, 1])
 
     @property
     def lead(self) -> int:
         """Queued points the car consumes while the last path sent is in flight."""
-        return self._lead
+        return int(self.batch.counters[self.env, 2])
 
     @property
     def queue(self) -> NDArray[np.float64]:
         """A copy of the queue: rows x, y, s, d, heading, increment (the car's next point
         first)."""
-        return self._buffer[self._start:self._stop].copy()
-
-    # ------------------------------------------------------------------ queue
-    def _end_row(self) -> list[float]:
-        """The last queued state (not to be modified), else the car's when it is empty."""
-        if self._end is not None:
-            return self._end
-        if self._last_row is None:
-            raise RuntimeError("no state yet: call plan() first")
-        return list(self._last_row)
-
-    def _truncate(self, keep: int) -> None:
-        if self._stop - self._start > keep:
-            self._stop = self._start + keep
-            self._end = self._buffer[self._stop - 1].tolist() if keep > 0 else None
-
-    def _append(self, rows: list[tuple[float, ...]]) -> None:
-        """Add states at the back of the queue."""
-        count = len(rows)
-        start, stop = self._start, self._stop
-        if stop + count > len(self._buffer):
-            # Move the queue back to the buffer's start (a larger buffer if need be).
-            size = stop - start
-            if size + count > len(self._buffer):
-                buffer = np.zeros((max(2 * len(self._buffer), size + count), _COLUMNS))
-            else:
-                buffer = self._buffer
-            buffer[:size] = self._buffer[start:stop]  # numpy copes with the overlap
-            self._buffer, self._start, start, stop = buffer, 0, 0, size
-        self._buffer[stop:stop + count] = rows
-        self._stop = stop + count
-        self._end = list(rows[-1])
-
-    def _locate_car(self, ego: NDArray[np.float32]) -> None:
-        """Drop the queued points the car has consumed: it stands on one of them, or still
-        on the point before the queue (the anchor) when it has not moved."""
-        start, stop = self._start, self._stop
-        self._consumed = 0
-        if start == stop:
-            return
-        cx, cy = float(ego[0]), float(ego[1])
-        # Search the points the car can have reached since the last cycle, the likeliest
-        # first: one cycle's frames. (Points that coincide, a car at rest, match there
-        # too, which keeps the count in step with the env's.)
-        reach = min(stop - start, self._lead + 2 * self.params.frames_per_cycle + 2)
-        expected = min(self.params.frames_per_cycle, reach) - 1
-        tolerance2 = _MATCH_TOLERANCE_M**2
-        px, py = self._buffer[start + expected, :2].tolist()
-        if (px - cx) ** 2 + (py - cy) ** 2 <= tolerance2:
-            self._consumed = expected + 1
-        else:
-            points = self._buffer[start:start + reach, :2].tolist()
-            for index, (px, py) in enumerate(points):
-                if (px - cx) ** 2 + (py - cy) ** 2 <= tolerance2:
-                    self._consumed = index + 1
-                    break
-        if not self._consumed:
-            if (self._anchor[0] - cx) ** 2 + (self._anchor[1] - cy) ** 2 > tolerance2:
-                # Lost (the env moved the car off our points): plan afresh from the car.
-                self._restart()
-            return  # else not moved (e.g. waiting for the first path to arrive)
-        if self._consumed >= stop - start:
-            # The path ran out under the car: continue from the car as observed.
-            self._restart()
-            return
-        self._anchor = [px, py]  # the point the car stands on
-        self._start = start + self._consumed
-
-    def _restart(self) -> None:
-        self._start = self._stop = 0
-        self._end = None
-        self._last_row = None
-        self._cycles = 0
-
-    # ------------------------------------------------------------------ planning
-    def _geometry(self, s_pred: list[float], distance: float, aim_d: float,
-                  ) -> tuple[list[tuple[float, ...]], list[complex], float]:
-        """The reference line at the predicted s, and the aim points ``distance`` further.
-
-        Returns, per predicted s, the line's ``(x, y, nx, ny, curvature)`` (n the unit
-        normal to the right); the aim points (x + iy) at d = ``aim_d``; the reference
-        curvature at the last aim point. One :meth:`ReferenceLine.line_frames_few` call:
-        a handful of points per batch, where plain Python beats numpy's per-call cost.
-        """
-        k = len(s_pred)
-        frames = self.reference.line_frames_few(s_pred + [sp + distance for sp in s_pred])
-        aims = [complex(x + aim_d * nx, y + aim_d * ny) for x, y, nx, ny, _ in frames[k:]]
-        return frames[:k], aims, frames[-1][4]
-
-    def _extend(self, count: int, decision: BehaviorDecision,
-                replay: list[float] | None = None) -> None:
-        """Append ``count`` states to the queue (the seed's steps 2 to 6); the first ones
-        take their increments from ``replay`` (states planned again) instead of the
-        decision's speed.
-
-        Per batch of up to ``batch_points`` new states, one geometry evaluation gives
-        the aim points and the reference line (point, normal, curvature) at each new
-        state's predicted s; the states themselves are stepped on Python floats and then
-        projected onto the line by one Newton step from the prediction (exact to ~1e-9 m:
-        the prediction is off by millimetres).
-        """
-        p = self.params
-        length = self.road.length
-        x, y, s, d, heading, increment = self._end_row()
-        target_d = self._target_d
-        goal = min(max(decision.target_speed * STEP, 0.0), p.max_increment)
-        change = max(decision.acceleration, 0.0) * STEP * STEP
-        # sqrt(2 J dv) in m/s^2 as a change of increment per step, dv = gap / STEP.
-        arrival = math.sqrt(2.0 * p.arrival_jerk / STEP) * STEP * STEP
-        steering = decision.steering
-        min_increment = p.min_steering_increment
-        look_ahead, margin = p.look_ahead, p.unwind_margin
-        cos, sin, atan2, sqrt = math.cos, math.sin, math.atan2, math.sqrt
-        rows: list[tuple[float, ...]] = []
-        start_increment, max_increment = p.start_increment, p.max_increment
-        # cos, sin of the heading: worked out again only when the heading changes.
-        c, sn = cos(heading), sin(heading)
-        while count > 0:
-            k = count if count < p.batch_points else p.batch_points
-            count -= k
-            # Speeds first: they do not depend on the steering. (Below, `b if b < a
-            # else a` is min(a, b) and `b if b > a else a` max(a, b), without the calls.)
-            increments = []
-            for _ in range(k):
-                if replay:
-                    increment = replay.pop(0)
-                    increments.append(increment)
-                    continue
-                # Arrive at the goal speed with the acceleration easing to zero at a
-                # bounded jerk, a <= sqrt(2 J |dv|): an abrupt end of the seed's rate
-                # shows as jerk in the original's 1 s windows. The seed's rate applies
-                # until dv <= rate^2 / (2 J) (12 m/s for the launch, 3 m/s normally).
-                gap = goal - increment
-                step_change = arrival * sqrt(abs(gap))
-                if not step_change < change:
-                    step_change = change
-                if gap > 0.0:
-                    increment += step_change
-                    if goal < increment:
-                        increment = goal
-                    if increment < start_increment:
-                        increment = goal if goal < start_increment else start_increment
-                else:
-                    increment -= step_change
-                    if goal > increment:
-                        increment = goal
-                increments.append(max_increment if max_increment < increment else increment)
-            # Lane error, gate and stretched look-ahead for this batch.
-            error = d - target_d
-            changing = abs(error) > p.lane_change_tolerance
-            gate = p.steering_gate_lane_change if changing else p.steering_gate
-            speed_step = max(increments[-1], min_increment)
-            distance = max(look_ahead, sqrt(margin * abs(error) * speed_step / gate))
-            # Aim point on the target lane, moved out by the pursuit's sagitta in bends.
-            lane_curvature = self._curvature_target / (1.0 + self._curvature_target * target_d)
-            aim_d = target_d + 0.5 * lane_curvature * distance * distance
-            s_pred = []
-            s_start = s
-            travelled = 0.0
-            ratio = self._ds_ratio
-            for step in increments:
-                travelled += step
-                s_pred.append(s + ratio * travelled)
-            # The line at each predicted s (its point, unit normal and curvature), then
-            # the aim points: one geometry evaluation.
-            frames, aims, self._curvature_target = self._geometry(s_pred, distance, aim_d)
-            if changing:
-                # The narrow gate, centred on the lane's own turn, inside the normal gate.
-                car_curvature = frames[0][4]
-                turn = car_curvature / (1.0 + car_curvature * d) * speed_step
-                low = max(turn - gate, -p.steering_gate)
-                high = min(turn + gate, p.steering_gate)
-            else:
-                low, high = -gate, gate
-            for i, step in enumerate(increments):
-                if steering and step >= min_increment:
-                    aim = aims[i]
-                    dx, dy = aim.real - x, aim.imag - y
-                    bearing = atan2(dy * c - dx * sn, dx * c + dy * sn)
-                    if low > bearing:
-                        bearing = low
-                    heading += high if high < bearing else bearing
-                    c, sn = cos(heading), sin(heading)
-                x += step * c
-                y += step * sn
-                # Frenet s, d: one Newton step from the predicted s (normal n = (nx, ny),
-                # tangent (-ny, nx); an offset d to the right runs 1 + curvature * d
-                # times faster than s).
-                rx, ry, nx, ny, bend = frames[i]
-                ox, oy = x - rx, y - ry
-                d = ox * nx + oy * ny
-                s = s_pred[i] + (oy * nx - ox * ny) / (1.0 + bend * d)
-                rows.append((x, y, s % length, d, heading, step))
-            if travelled > 1e-6:
-                self._ds_ratio = min(max((s - s_start) / travelled, 0.5), 2.0)
-            s %= length
-        self._append(rows)
+        env = self.env
+        return self.batch.buffer[env, self.batch.start[env]:self.batch.stop[env]].copy()

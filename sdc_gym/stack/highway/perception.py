@@ -45,6 +45,13 @@ from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.perception_kernel import (
+    BOUNDARY,
+    FAULTY,
+    SOUND,
+    measure_batch,
+    select_batch,
+)
 from sdc_gym.stack.highway.world_model import NO_CAR, LaneView, TrackedCar, WorldModel
 
 FloatArray = NDArray[np.float64]
@@ -81,6 +88,7 @@ def _fast_constructor(cls: type) -> Callable[..., Any]:
 _new_car = _fast_constructor(TrackedCar)
 _new_lane_view = _fast_constructor(LaneView)
 _new_world = _fast_constructor(WorldModel)
+_TABLES: dict[int, Any] = {}
 # The lane index of a car whose d is NaN (numpy's cast of NaN to int64 on x86).
 _NAN_LANE = -(2**63)
 
@@ -131,9 +139,10 @@ class Perception:
     ``[0, length)`` after every step, so a car crossing the seam keeps its track. A track
     starts on the first sighting of an id, is predicted every cycle by the time elapsed
     since the last one, is updated when its id is sensed (a dropout is predict-only), is
-    restarted when a sighting lands more than ``track_gate`` from it, and is dropped when
-    its id has not been sensed for ``track_timeout`` seconds (the env gives a recycled car
-    a new id). A ``time`` earlier than the previous call's starts afresh (a new episode).
+    restarted when a sighting lands more than ``track_gate`` from it (a recycled car keeps
+    its slot's id, as in the original, and reappears far from where it left), and is
+    dropped when its id has not been sensed for ``track_timeout`` seconds. A ``time``
+    earlier than the previous call's starts afresh (a new episode).
     The world model then holds every live track, sensed this cycle or not.
 
     Lane views use centre-to-centre gaps within ``sensing_range``; ``cars`` lists every
@@ -220,30 +229,13 @@ class Perception:
 
     def perceive(self, observation: dict[str, Any], time: float) -> WorldModel:
         """One cycle: the world model of ``observation`` at ``time`` (s since the start)."""
-        p = self.params
-        lanes = self._lanes
-        ego = observation["ego"]
-        if not (type(ego) is np.ndarray and ego.dtype.kind == "f"):
-            ego = np.asarray(ego, np.float64)
-        _, _, ego_s, ego_d, _, ego_speed = ego.tolist()
-        ego_s %= self._length
-        ego_lane = min(max(math.floor(ego_d * self._inverse_width), 0), lanes - 1)
-
-        ids, s, d, speed, d_rate, curvature = self._measure(observation)
-        if p.tracking:
-            tracked = self._track(time, np.array(ids, dtype=np.int64), np.array(s, np.float64),
-                                  np.array(d, np.float64), np.array(speed, np.float64),
-                                  np.array(d_rate, np.float64),
-                                  np.array(curvature, np.float64))
-            ids, s, d, speed, d_rate = (column.tolist() for column in tracked)
-        if s:
-            lane_views, cars = self._select(ids, s, d, speed, d_rate, ego_s, ego_d, ego_lane)
-        else:
-            lane_views, cars = self._empty_views, ()
-        return _new_world(float(time), ego_s, ego_d, ego_speed, ego_lane, lanes,
-                          self._lane_width, lane_views, cars,
-                          self._preferred_lane(lane_views, ego_lane),
-                          self.road_radius(ego_s, ego_lane))
+        ego = np.asarray(observation["ego"])
+        fusion = np.asarray(observation["sensor_fusion"])
+        mask = observation.get("sensor_fusion_mask")
+        present = (np.ones(len(fusion), dtype=bool) if mask is None
+                   else np.asarray(mask).astype(bool))
+        return perceive_all([self], ego[None], fusion[None], present[None],
+                            np.array([float(time)]))[0]
 
     def road_radius(self, s: float, lane: int) -> float:
         """Circumradius (m) of ``lane``'s centre line through s, s + spacing, s + 2 spacing.
@@ -494,3 +486,93 @@ class Perception:
         track_speed = states[:, 2] * (1.0 + self._lookup(track_s)[2].real * track_d)
         return (np.fromiter(filters, dtype=np.int64, count=len(filters)), track_s, track_d,
                 track_speed, states[:, 3])
+
+
+def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
+                 present: NDArray[np.bool_], times: NDArray[np.float64], *,
+                 with_cars: bool = True) -> list[WorldModel]:
+    """One perception cycle of a batch of envs (one :class:`Perception`, with its tracks,
+    per env; they share the road and parameters): ``ego`` ``(envs, 6)`` and ``fusion``
+    ``(envs, cars, 7)`` as observed, ``present`` the rows sensed. The per-car work runs in
+    the compiled kernels of :mod:`sdc_gym.stack.highway.perception_kernel` for every env
+    at once. ``with_cars=False`` leaves ``WorldModel.cars`` empty (layers that read only the
+    lane views, the ego and the road: the executor, the shield, the features)."""
+    first = perceptions[0]
+    p = first.params
+    envs, cars = fusion.shape[:2]
+    lanes, length = first._lanes, first._length
+    table = _TABLES.get(id(first._geometry))
+    if table is None or table[0] is not first._geometry:
+        table = (first._geometry, np.array(first._geometry_xy_rows))
+        _TABLES[id(first._geometry)] = table
+    rows = table[1]
+    fusion64 = np.ascontiguousarray(fusion, dtype=np.float64)
+    shape = (envs, cars)
+    s, d, nx, ny, bend = (np.zeros(shape) for _ in range(5))
+    fault = np.zeros(shape, dtype=np.int64)
+    count = np.zeros(envs, dtype=np.int64)
+    xy, velocity, miss = (np.zeros((envs, cars, 2)) for _ in range(3))
+    ids = np.zeros(shape, dtype=np.int64)
+    measure_batch(fusion64, np.ascontiguousarray(present), rows, length,
+                  first._geometry_scale, p.fault_tolerance, s, d, nx, ny, bend, fault, count,
+                  xy, velocity, miss, ids)
+    scale = first._geometry_scale
+    for env in np.flatnonzero((fault != SOUND).any(axis=1)).tolist():
+        verdict = fault[env, :count[env]]
+        bad = [k for k in range(int(count[env])) if verdict[k] == FAULTY or (
+            verdict[k] == BOUNDARY and np.abs(np.array([complex(*miss[env, k])]))[0]
+            > p.fault_tolerance)]
+        if not bad:
+            continue
+        s_fixed, d_fixed = first.road.reference.to_frenet(xy[env, bad])
+        for k, s_k, d_k in zip(bad, np.mod(s_fixed, length).tolist(), d_fixed.tolist(),
+                               strict=True):
+            u = s_k * scale
+            i = int(u)
+            _, _, nxi, nyi, bi, _, _, nx_step, ny_step, b_step = first._geometry_xy_rows[i]
+            t = u - i
+            s[env, k], d[env, k] = s_k, d_k
+            nx[env, k], ny[env, k] = nxi + t * nx_step, nyi + t * ny_step
+            bend[env, k] = bi + t * b_step
+    # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
+    projected = (velocity[..., 0] + 1j * velocity[..., 1]) * (nx + 1j * ny).conj()
+    speed, d_rate = projected.imag, projected.real
+    ego64 = ego.astype(np.float64)
+    ego_s = ego64[:, 2] % length
+    ego_d = ego64[:, 3]
+    ego_lane = np.minimum(np.maximum(np.floor(ego_d * first._inverse_width), 0),
+                          lanes - 1).astype(np.int64)
+    views = np.zeros((envs, lanes, 6))
+    car_lane = np.zeros(shape, dtype=np.int64)
+    car_gap = np.zeros(shape)
+    select_batch(s, d, speed, ids, count, ego_s, ego_d, ego_lane, length, lanes,
+                 first._inverse_width, p.ghosting, p.ghost_lateral, p.ghost_ahead,
+                 p.ghost_behind, p.sensing_range, views, car_lane, car_gap)
+    worlds = []
+    for env, perception in enumerate(perceptions):
+        n = int(count[env])
+        e_s, e_d, e_speed = float(ego_s[env]), float(ego_d[env]), float(ego64[env, 5])
+        lane = int(ego_lane[env])
+        if perception.params.tracking:
+            tracked = perception._track(float(times[env]), ids[env, :n], s[env, :n],
+                                        d[env, :n], speed[env, :n], d_rate[env, :n],
+                                        bend[env, :n])
+            columns = [column.tolist() for column in tracked]
+            if columns[1]:
+                lane_views, cars_seen = perception._select(*columns, e_s, e_d, lane)
+            else:
+                lane_views, cars_seen = perception._empty_views, ()
+        else:
+            cars_seen = () if not with_cars else tuple(map(
+                _new_car, ids[env, :n].tolist(), s[env, :n].tolist(),
+                                  d[env, :n].tolist(), speed[env, :n].tolist(),
+                                  d_rate[env, :n].tolist(), car_lane[env, :n].tolist(),
+                                  car_gap[env, :n].tolist()))
+            lane_views = tuple(
+                _new_lane_view(k, v[0], v[1], int(v[2]), v[3], v[4], int(v[5]))
+                for k, v in enumerate(views[env].tolist())) if n else perception._empty_views
+        worlds.append(_new_world(float(times[env]), e_s, e_d, e_speed, lane, lanes,
+                                 perception._lane_width, lane_views, cars_seen,
+                                 perception._preferred_lane(lane_views, lane),
+                                 perception.road_radius(e_s, lane)))
+    return worlds

@@ -18,10 +18,11 @@ Longitudinal
     * in between: coast.
     * Standstill: target speed ~0 and speed below ``standstill_speed_mps``: no throttle,
       and at least the holding torque, ``hold_torque_margin`` times the vehicle's
-      ``creep_hold_torque`` (400 N m sim, 700 N m site: the torque that exactly balances
-      the idle creep, so a margin is needed to hold rather than tie). The PID keeps
-      braking harder if it asks for more (the last metre of a stop, against the
-      creep); when the target speed rises again, the PID and the filter start afresh.
+      ``creep_hold_torque`` (700 N m site: the torque that exactly balances the idle
+      creep, so a margin is needed to hold rather than tie; 0 for the sim car, which
+      does not creep and stays where it stops). The PID keeps braking harder if it asks
+      for more (the last metre of a stop, against the creep); when the target speed
+      rises again, the PID and the filter start afresh.
 
 Lateral (:class:`YawController`, the original's)
     ``w' = v_current * w_target / v_target`` (the same path curvature at the current
@@ -64,7 +65,7 @@ STOP_TARGET_MPS = 0.01  # a target speed below this asks for a stop
 # brake at most |decel_limit| = 1 m/s^2 (428 N m), less than its idle creep below ~0.7 m/s:
 # without the holding torque above that speed it would creep through a stop line.
 STANDSTILL_SPEED_MPS = 1.0
-HOLD_TORQUE_MARGIN = 1.25  # x creep_hold_torque: 500 N m sim, 875 N m site
+HOLD_TORQUE_MARGIN = 1.25  # x creep_hold_torque: 875 N m site (0 for the sim car: no creep)
 WATCHDOG_S = 0.5
 # The yaw controller limits the *commanded* yaw rate at the speed it sees; within the next
 # step the speed still changes, so the car's lateral acceleration can end a hair above a

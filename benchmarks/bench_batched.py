@@ -1,0 +1,170 @@
+"""Throughput of the natively batched envs against the single env, measured in one run.
+
+    python benchmarks/bench_batched.py [--steps 2000] [--envs 1 8 64 256 1024] [--ppo-steps 16384]
+
+Prints, with the machine's load (other jobs skew absolute numbers; ratios measured side
+by side in the same run stay meaningful):
+
+* ``HighwayLoopBehavior-v0`` env steps/s with random actions: the single env
+  (``gym.make``) and the batch (``gym.make_vec(..., vectorization_mode=
+  "vector_entry_point")``) at each E, and the ratio batch / single;
+* PPO samples/s (``bench_behavior.py``'s settings: MLP 64x64, 2048 samples per rollout,
+  5 epochs of minibatches of 256): the batch through ``SB3VecEnv`` against two single
+  envs in subprocesses (the previous default of train.py);
+* ``HighwayLoop-v0`` with the lane-keeping driver: simulated s per wall s against the
+  number of cars, and the traffic's decision kernel alone (leaders by one sort per lane:
+  the ratio 500 cars / 100 cars);
+* ``TrackLoopBehavior-v0`` env steps/s (single env).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+import warnings
+
+import gymnasium as gym
+import numpy as np
+from bench_behavior import PPO_SETTINGS, ppo_samples_per_second
+
+import sdc_gym  # noqa: F401
+
+BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
+
+
+def load() -> str:
+    return " ".join(f"{value:.2f}" for value in os.getloadavg())
+
+
+def single_steps_per_second(env_id: str, steps: int, seed: int = 0) -> float:
+    env = gym.make(env_id)
+    env.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    space = env.action_space
+    actions = [int(rng.integers(space.n)) if isinstance(space, gym.spaces.Discrete)
+               else space.sample() for _ in range(steps)]
+    env.step(actions[0])  # warm-up (compiled kernels load)
+    started = time.perf_counter()
+    for action in actions:
+        _, _, terminated, truncated, _ = env.step(action)
+        if terminated or truncated:
+            env.reset()
+    wall = time.perf_counter() - started
+    env.close()
+    return steps / wall
+
+
+def batch_steps_per_second(envs: int, env_steps: int, seed: int = 0) -> float:
+    vector = gym.make_vec(BEHAVIOR, num_envs=envs, vectorization_mode="vector_entry_point")
+    vector.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    vector.step(rng.integers(9, size=envs))
+    batches = max(env_steps // envs, 3)
+    started = time.perf_counter()
+    for _ in range(batches):
+        vector.step(rng.integers(9, size=envs))
+    wall = time.perf_counter() - started
+    vector.close()
+    return batches * envs / wall
+
+
+def ppo_batch_samples_per_second(samples: int, envs: int, seed: int = 0) -> float:
+    """bench_behavior's PPO measurement, with the envs as one native batch."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from sdc_gym.envs.sb3 import SB3VecEnv
+
+    torch.set_num_threads(1)
+    vec = VecMonitor(SB3VecEnv(BEHAVIOR, envs))
+    vec.seed(seed)
+    model = PPO("MlpPolicy", vec, seed=seed, verbose=0,
+                **{**PPO_SETTINGS, "n_steps": PPO_SETTINGS["n_steps"] * 2 // envs})
+    model.learn(2048)  # warm-up: the first rollout
+    started = time.perf_counter()
+    model.learn(samples, reset_num_timesteps=False)
+    wall = time.perf_counter() - started
+    vec.close()
+    return samples / wall
+
+
+def highway_sim_seconds_per_wall_second(cars: int, seconds: float, seed: int = 0) -> float:
+    from agents.lane_keeping import LaneKeepingDriver
+
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={
+        "steps_per_action": 5, "terminate_on_collision": False, "laps": 100,
+        "traffic": {"car_count": cars, "spawn_range": 200.0 if cars <= 50 else 3000.0}})
+    driver = LaneKeepingDriver(env.unwrapped.road)
+    observation, _ = env.reset(seed=seed)
+    driver.reset()
+    steps = round(seconds / 0.1)
+    started = time.perf_counter()
+    for _ in range(steps):
+        observation, _, terminated, truncated, _ = env.step(driver.act(observation))
+        if terminated or truncated:
+            observation, _ = env.reset()
+            driver.reset()
+    wall = time.perf_counter() - started
+    env.close()
+    return steps * 0.1 / wall
+
+
+def decision_kernel_ms(cars: int, repeats: int = 30) -> float:
+    from sdc_gym.road.builtin_highways import get_highway_map
+    from sdc_gym.traffic import TrafficConfig
+    from sdc_gym.traffic.batch import TrafficBatch
+    from sdc_gym.traffic.decisions import decide
+
+    road = get_highway_map("default")
+    batch = TrafficBatch(road, TrafficConfig(car_count=cars, spawn_range=3000.0), envs=1)
+    batch.reset_at(0, np.random.default_rng(0), road.start_s, road.start_d)
+    decide(batch, batch.state, batch.rngs)  # type: ignore[arg-type]
+    started = time.perf_counter()
+    for _ in range(repeats):
+        decide(batch, batch.state, batch.rngs)  # type: ignore[arg-type]
+    return (time.perf_counter() - started) / repeats * 1e3
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--steps", type=int, default=2000, help="single-env steps timed")
+    parser.add_argument("--batch-steps", type=int, default=20000,
+                        help="env steps timed per batch size")
+    parser.add_argument("--envs", type=int, nargs="+", default=[1, 8, 64, 256, 1024])
+    parser.add_argument("--ppo-steps", type=int, default=16384)
+    parser.add_argument("--ppo-envs", type=int, default=64, help="envs of the batched PPO")
+    parser.add_argument("--cars", type=int, nargs="+", default=[12, 100, 200, 500])
+    parser.add_argument("--sim-seconds", type=float, default=60.0)
+    parser.add_argument("--skip-ppo", action="store_true")
+    args = parser.parse_args()
+    warnings.filterwarnings("ignore")
+    print(f"load average at start: {load()} (cores: {os.cpu_count()}, numpy {np.__version__})")
+
+    single = single_steps_per_second(BEHAVIOR, args.steps)
+    print(f"HighwayLoopBehavior-v0 single env:        {single:9.0f} env steps/s")
+    for envs in args.envs:
+        rate = batch_steps_per_second(envs, max(args.batch_steps, 3 * envs))
+        print(f"HighwayLoopBehavior-v0 batch E = {envs:<5d}:  {rate:9.0f} env steps/s  "
+              f"({rate / single:5.1f}x the single env)   load {load()}")
+    if not args.skip_ppo:
+        ours = ppo_batch_samples_per_second(args.ppo_steps, args.ppo_envs)
+        theirs = ppo_samples_per_second(BEHAVIOR, args.ppo_steps, 2)
+        print(f"PPO samples/s, batch of {args.ppo_envs} (SB3VecEnv): {ours:9.0f}")
+        print(f"PPO samples/s, 2 envs in subprocesses:   {theirs:9.0f}   "
+              f"ratio {ours / theirs:.1f}x   load {load()}")
+    for cars in args.cars:
+        rate = highway_sim_seconds_per_wall_second(cars, args.sim_seconds)
+        print(f"HighwayLoop-v0 + lane keeping, {cars:4d} cars: {rate:8.1f} simulated s / wall s")
+    small, large = decision_kernel_ms(100), decision_kernel_ms(500)
+    print(f"traffic decision kernel: 100 cars {small:.2f} ms, 500 cars {large:.2f} ms "
+          f"(ratio {large / small:.2f})")
+    track = single_steps_per_second("sdc_gym/TrackLoopBehavior-v0", max(args.steps // 20, 50))
+    print(f"TrackLoopBehavior-v0 single env:         {track:9.1f} env steps/s")
+    print(f"load average at the end: {load()}")
+
+
+if __name__ == "__main__":
+    main()

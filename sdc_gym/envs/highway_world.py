@@ -1,0 +1,406 @@
+"""The path-level highway of ``envs`` envs at once: config once, state as arrays, one step.
+
+:class:`HighwayWorld` is the simulation behind ``sdc_gym/HighwayLoop-v0`` (the batch of
+one) and its vector env: every layer is a kernel over a leading env axis, the ego's
+perfect controller (:class:`~sdc_gym.vehicle.path_follower.PathFollower`), its exact
+projection on the reference line, the traffic
+(:class:`~sdc_gym.traffic.batch.TrafficBatch`), contact
+(:func:`~sdc_gym.geometry.collision.first_contacts`), the metrics
+(:class:`~sdc_gym.metrics.batch.DrivingMetricsBatch`) and the sensors. Envs are reset one
+at a time (:meth:`HighwayWorld.reset_at`, each from its own generator) and stepped
+together (:meth:`HighwayWorld.step`); env ``i`` of a batch is exactly a single env with
+the same generator and paths, frame for frame.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
+from sdc_gym.geometry.collision import contact_reach_sq, first_contacts
+from sdc_gym.geometry.exact_math import hypot
+from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
+from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
+from sdc_gym.metrics.batch import DrivingMetricsBatch
+from sdc_gym.road.builtin_highways import get_highway_map
+from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig
+from sdc_gym.traffic import IDMParameters, TrafficConfig
+from sdc_gym.traffic.batch import TrafficBatch
+from sdc_gym.vehicle.path_follower import PHYSICS_DT, PathFollower
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+ACTION_MARGIN_M = 100.0  # path points may lie this far outside the map's bounding box
+EGO_LENGTH_M = 4.7
+EGO_WIDTH_M = 1.9
+
+
+def _dataclass_defaults(cls: type, exclude: tuple[str, ...] = ()) -> dict[str, Any]:
+    """A dataclass's fields and defaults as a plain config dict (nested dataclasses too)."""
+    defaults: dict[str, Any] = {}
+    for field in dataclasses.fields(cls):
+        if field.name in exclude:
+            continue
+        if field.default is not dataclasses.MISSING:
+            value = field.default
+        elif field.default_factory is not dataclasses.MISSING:
+            value = field.default_factory()
+        else:
+            continue
+        if dataclasses.is_dataclass(value):
+            value = dataclasses.asdict(value)
+        defaults[field.name] = value
+    return defaults
+
+
+def _to_tuple(value: Any) -> Any:
+    return tuple(value) if isinstance(value, list) else value
+
+
+HIGHWAY_DEFAULTS: dict[str, Any] = {
+    "map": "default",            # built-in name ("default", "oval") or path to x y s dx dy
+    "path_points": 50,           # capacity of the action path (points)
+    "steps_per_action": 3,       # physics frames (0.02 s) per env step
+    "latency_steps": None,       # frames before a path takes effect; None = steps_per_action
+    "laps": 1,                   # laps for success
+    "max_duration": 600.0,       # s of simulated time before truncation
+    "terminate_on_collision": True,
+    "start_s": None,             # m; None = the map's start (124.8336)
+    "start_d": None,             # m; None = the map's start (middle lane)
+    "ego_length": EGO_LENGTH_M,  # m
+    "ego_width": EGO_WIDTH_M,    # m
+    "traffic": _dataclass_defaults(TrafficConfig, exclude=("ego_length", "ego_width")),
+    "sensors": _dataclass_defaults(SensorConfig),    # see SensorConfig
+    "incident_rules": _dataclass_defaults(IncidentRules),  # see sdc_gym.metrics
+    "reward_progress": 1.0,      # weight of normalised progress
+    "reward_incident": {"collision": -10.0, "acceleration": -1.0, "jerk": -1.0,
+                        "speed": -1.0, "lane": -1.0, "off_road": -1.0},
+    "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
+    "frenet": "original",        # telemetry s/d: "original" (waypoint polyline) | "exact"
+    **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
+}
+"""``HighwayLoop-v0``'s config keys with their defaults (units in the comments)."""
+
+
+@dataclass
+class StepResult:
+    """What one :meth:`HighwayWorld.step` did, per env: rewards, flags, the incidents that
+    began (an empty tuple for most envs), and whether an incident of each env was a
+    collision."""
+
+    reward: FloatArray
+    terminated: NDArray[np.bool_]
+    truncated: NDArray[np.bool_]
+    incidents: list[Any]
+
+
+class HighwayWorld:
+    """``envs`` highway loops driven by paths (see the module docstring).
+
+    Args:
+        config: ``HighwayLoop-v0`` config overrides (checked; see :data:`HIGHWAY_DEFAULTS`).
+        envs: number of envs.
+        owner: name for error messages.
+    """
+
+    def __init__(self, config: dict[str, Any] | None = None, envs: int = 1,
+                 owner: str = "HighwayLoop-v0") -> None:
+        self.config = cfg = resolve_config(HIGHWAY_DEFAULTS, config, owner=owner)
+        require(isinstance(envs, int) and envs >= 1, owner, "num_envs", "an int >= 1", envs)
+        require(cfg["path_points"] >= 2, owner, "path_points", "an int >= 2", cfg["path_points"])
+        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
+                cfg["steps_per_action"])
+        if cfg["latency_steps"] is None:
+            cfg["latency_steps"] = cfg["steps_per_action"]
+        require(isinstance(cfg["latency_steps"], int) and cfg["latency_steps"] >= 0, owner,
+                "latency_steps", "None or an int >= 0", cfg["latency_steps"])
+        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
+        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
+                f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
+        self.envs = envs
+        self.road: HighwayMap = get_highway_map(cfg["map"])
+        traffic_cfg = dict(cfg["traffic"])
+        traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
+        traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])
+        try:
+            self.traffic_config = TrafficConfig(**{k: _to_tuple(v) for k, v in traffic_cfg.items()})
+            self.sensor_config = SensorConfig(**{k: _to_tuple(v)
+                                                 for k, v in cfg["sensors"].items()})
+            self.rules = IncidentRules(**{k: _to_tuple(v)
+                                          for k, v in cfg["incident_rules"].items()})
+        except (TypeError, ValueError) as error:
+            raise ConfigError(f"{owner}: {error}") from None
+        require(set(cfg["reward_incident"]) == set(INCIDENT_KINDS), owner, "reward_incident",
+                f"a mapping with exactly the kinds {list(INCIDENT_KINDS)}",
+                cfg["reward_incident"])
+        self.path_points = int(cfg["path_points"])
+        self.steps_per_action = int(cfg["steps_per_action"])
+        self.latency_steps = int(cfg["latency_steps"])
+        self.ego_length = float(cfg["ego_length"])
+        self.ego_width = float(cfg["ego_width"])
+        self.car_count = self.traffic_config.car_count
+        self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT)
+        self.sensors = HighwaySensors(self.sensor_config, self.car_count, self.road.length,
+                                      envs)
+        self.metrics = DrivingMetricsBatch(self.rules, self.road.length, envs)
+        self.ego = PathFollower(envs, self.path_points, self.steps_per_action,
+                                self.latency_steps)
+        low_xy = self.road.waypoints[:, :2].min(axis=0) - ACTION_MARGIN_M
+        high_xy = self.road.waypoints[:, :2].max(axis=0) + ACTION_MARGIN_M
+        self.action_low, self.action_high = low_xy, high_xy
+        self._low_rows = np.tile(low_xy, (self.path_points, 1))
+        self._high_rows = np.tile(high_xy, (self.path_points, 1))
+        self.incident_penalty = {kind: float(value)
+                                 for kind, value in cfg["reward_incident"].items()}
+        self.progress_scale = cfg["reward_progress"] / (
+            self.rules.speed_limit * PHYSICS_DT * self.steps_per_action)
+        self.start_s = float(self.road.reference.wrap_s(
+            cfg["start_s"] if cfg["start_s"] is not None else self.road.start_s))
+        self.start_d = float(cfg["start_d"] if cfg["start_d"] is not None else self.road.start_d)
+        self.start_xy = self.road.reference.to_xy(self.start_s, self.start_d).astype(np.float64)
+        # The original's car faces +x at its start (yaw exactly 0 in the first telemetry)
+        # until a path turns it; our own maps, and a start set in the config, face the road.
+        at_map_start = cfg["start_s"] is None and cfg["start_d"] is None
+        self.start_yaw = (self.road.start_heading() if at_map_start
+                          else float(self.road.reference.heading(self.start_s)))
+        # The telemetry's s/d convention (the Dict observation always has the exact ones).
+        self.telemetry_frenet = (self.road.original_frenet if cfg["frenet"] == "original"
+                                 else None)
+        # Per-env state beyond the layers': Frenet pose, the path end's s, d, the latest
+        # sensor fusion, the episode's end.
+        self.s = np.zeros(envs)
+        self.d = np.zeros(envs)
+        self.speed = np.zeros(envs)
+        self.end_sd = np.zeros((envs, 2))
+        self.fusion = np.zeros((envs, self.car_count, 7))
+        self.fusion_mask = np.ones((envs, self.car_count), dtype=bool)
+        self.collided = np.zeros(envs, dtype=bool)
+        self.done_reason = [""] * envs
+        self.rngs: list[np.random.Generator | None] = [None] * envs
+        self._all_rows_present = self.sensor_config.dropout_probability == 0.0
+
+    # ------------------------------------------------------------------ episodes
+    def reset_at(self, env: int, rng: np.random.Generator) -> None:
+        """Start env ``env``'s episode; all its randomness comes from ``rng``."""
+        self.rngs[env] = rng
+        self.ego.reset_at(env, self.start_xy, self.start_yaw)
+        self.s[env], self.d[env], self.speed[env] = self.start_s, self.start_d, 0.0
+        self.end_sd[env] = 0.0
+        self.traffic.reset_at(env, rng, self.start_s, self.start_d)
+        self.sensors.reset_at(env)
+        self.metrics.reset_at(env, float(self.start_xy[0]), float(self.start_xy[1]),
+                              self.start_s, self.start_d, 0.0)
+        self.collided[env] = False
+        self.done_reason[env] = ""
+        self.read_sensors(np.array([env]))
+
+    # ------------------------------------------------------------------ paths
+    def validate_path(self, action: Any) -> FloatArray:
+        """One env's action as an ``(m, 2)`` float array of real points (trailing repeats
+        of the last point dropped), or a clear ``ValueError``."""
+        try:
+            points = np.asarray(action, dtype=np.float64)
+        except (TypeError, ValueError) as error:
+            raise ValueError(f"path must be numeric (x, y) points: {error}") from None
+        if points.size == 0:
+            return np.zeros((0, 2))
+        if points.ndim != 2 or points.shape[1] != 2:
+            raise ValueError(f"path must have shape (m, 2) with m <= {self.path_points}, "
+                             f"got {points.shape}")
+        if len(points) > self.path_points:
+            raise ValueError(f"path has {len(points)} points; at most path_points = "
+                             f"{self.path_points} (raise the 'path_points' config key)")
+        count = len(points)
+        padded = np.zeros((1, self.path_points, 2))
+        padded[0, :count] = points
+        length = self.check_paths(padded, np.array([count]))
+        return points[: int(length[0])]
+
+    def check_paths(self, paths: FloatArray, lengths: IntArray) -> IntArray:
+        """Check ``(envs, path_points, 2)`` paths (their first ``lengths`` points); the
+        lengths without trailing repeats of the last point (padding: a car parked on its
+        last point would stop dead there anyway). A non-finite or out-of-bounds point
+        raises ``ValueError`` naming it."""
+        used = np.arange(paths.shape[1])[None, :] < lengths[:, None]
+        # One test covers NaN, inf and out-of-bounds (NaN compares false).
+        inside = (paths >= self._low_rows) & (paths <= self._high_rows)
+        bad = used & ~(inside[..., 0] & inside[..., 1])
+        if np.count_nonzero(bad):
+            env = int(np.nonzero(bad)[0][0])
+            self._raise_bad_point(paths[env, :lengths[env]], env if self.envs > 1 else None)
+        rows = np.arange(len(lengths))
+        last = paths[rows, np.maximum(lengths - 1, 0)]
+        before = paths[rows, np.maximum(lengths - 2, 0)]
+        repeated = (lengths > 1) & (before == last).all(axis=1)
+        if not np.count_nonzero(repeated):
+            return lengths
+        differs = used & (paths != last[:, None, :]).any(axis=2)
+        last_differ = np.where(differs, np.arange(paths.shape[1])[None, :], -1).max(axis=1)
+        return np.where(repeated, np.where(last_differ >= 0, last_differ + 2, 1), lengths)
+
+    def _raise_bad_point(self, points: FloatArray, env: int | None) -> None:
+        where = "" if env is None else f"env {env}: "
+        finite = np.isfinite(points).all(axis=1)
+        if not finite.all():
+            bad = int(np.flatnonzero(~finite)[0])
+            raise ValueError(f"{where}path point {bad} is not finite: {points[bad].tolist()} "
+                             "(NaN/inf are not allowed; send fewer points or repeat the last)")
+        outside = ((points < self.action_low) | (points > self.action_high)).any(axis=1)
+        bad = int(np.flatnonzero(outside)[0])
+        raise ValueError(
+            f"{where}path point {bad} {points[bad].tolist()} is outside the action bounds "
+            f"x in [{self.action_low[0]:.1f}, {self.action_high[0]:.1f}], "
+            f"y in [{self.action_low[1]:.1f}, {self.action_high[1]:.1f}]")
+
+    # ------------------------------------------------------------------ stepping
+    def step(self, paths: FloatArray, lengths: IntArray) -> StepResult:
+        """Every env sends its path (checked by :meth:`check_paths`) and the world runs
+        ``steps_per_action`` physics frames."""
+        if any(rng is None for rng in self.rngs):
+            raise RuntimeError("call reset() before step()")
+        self.ego.send(paths, lengths)
+        frames = self.steps_per_action
+        xy, yaw, speed = self.ego.drive()
+        s, d = self._project(xy, speed)
+        samples = self.traffic.advance(frames, s, d, speed)
+        st = self.traffic.state
+        contact = first_contacts(
+            xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
+            st.length, st.width, st.ids,
+            contact_reach_sq(self.ego_length, self.ego_width, st.length, st.width))
+        progress_before = self.metrics.progress
+        incidents = self.metrics.record(xy, s, d, speed, contact)
+        self.s, self.d, self.speed = s[:, -1], d[:, -1], speed[:, -1]
+        self.read_sensors()
+
+        reward = self.progress_scale * (self.metrics.progress - progress_before)
+        collision = np.zeros(self.envs, dtype=bool)
+        for env, new in enumerate(incidents):
+            for incident in new:
+                reward[env] += self.incident_penalty[incident.kind]
+                if incident.kind == "collision":
+                    collision[env] = True
+        self.collided |= collision
+        terminated = collision & self.config["terminate_on_collision"]
+        lapped = ~terminated & (self.metrics.laps >= self.config["laps"])
+        terminated = terminated | lapped
+        truncated = ~terminated & (self.metrics.time() >= self.config["max_duration"] - 1e-9)
+        for env in np.flatnonzero(terminated | truncated).tolist():
+            self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
+                                     and self.config["terminate_on_collision"]
+                                     else "laps_completed" if lapped[env] else "max_duration")
+        return StepResult(reward, terminated, truncated, incidents)
+
+    def _project(self, xy: FloatArray, speed: FloatArray) -> tuple[FloatArray, FloatArray]:
+        """Frenet s, d ``(envs, frames)`` of the ego's frames; the path's end point rides
+        in the same projection (into :attr:`end_sd`)."""
+        envs, frames = speed.shape
+        guesses = np.empty((envs, frames + 2))
+        guesses[:, 0] = self.s
+        guesses[:, 1:-1] = speed * PHYSICS_DT  # warm start: last s plus the distance driven
+        np.add.accumulate(guesses[:, :-1], axis=1, out=guesses[:, :-1])
+        follower = self.ego
+        has_end = follower.path_start < follower.path_length
+        end = follower.path[np.arange(envs), np.maximum(follower.path_length - 1, 0)]
+        end = np.where(has_end[:, None], end, xy[:, -1])
+        # The path's end lies about its straight-line distance ahead of the car.
+        guesses[:, -1] = guesses[:, -2] + hypot(end[:, 0] - xy[:, -1, 0],
+                                                end[:, 1] - xy[:, -1, 1])
+        points = np.concatenate([xy, end[:, None, :]], axis=1)
+        s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses[:, 1:])
+        self.end_sd = np.where(has_end[:, None], np.stack([s[:, -1], d[:, -1]], axis=1), 0.0)
+        return s[:, :-1], d[:, :-1]
+
+    def read_sensors(self, rows: IntArray | None = None) -> None:
+        """Sensor fusion of the traffic's current state (the last frame of the step)."""
+        st = self.traffic.state
+        if rows is None:
+            self.fusion, mask = self.sensors.read(st.ids, st.x, st.y, st.vx, st.vy, st.s,
+                                                  st.d, self.rngs)  # type: ignore[arg-type]
+            self.fusion_mask = mask
+            return
+        fusion, mask = self.sensors.read(st.ids[rows], st.x[rows], st.y[rows], st.vx[rows],
+                                         st.vy[rows], st.s[rows], st.d[rows],
+                                         [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
+        self.fusion = self.fusion.copy()
+        self.fusion[rows] = fusion
+        self.fusion_mask = self.fusion_mask.copy()
+        self.fusion_mask[rows] = mask
+
+    # ------------------------------------------------------------------ observations
+    def ego_array(self) -> FloatArray:
+        """``(envs, 6)``: x, y, s, d (m), yaw (rad), speed (m/s)."""
+        return np.column_stack([self.ego.xy, self.s, self.d, self.ego.yaw, self.speed])
+
+    def observation(self, env: int) -> dict[str, Any]:
+        """Env ``env``'s ``HighwayLoop-v0`` observation."""
+        remaining = self.ego.remaining(env)
+        count = len(remaining)
+        previous = np.zeros((self.path_points, 2), dtype=np.float32)
+        previous[:count] = remaining
+        return {
+            "ego": np.array([*self.ego.xy[env].tolist(), self.s[env], self.d[env],
+                             self.ego.yaw[env], self.speed[env]], dtype=np.float32),
+            "previous_path": previous,
+            "previous_path_count": count,
+            "end_path": self.end_sd[env].astype(np.float32),
+            "sensor_fusion": self.fusion[env].astype(np.float32),
+            "sensor_fusion_mask": self.fusion_mask[env].astype(np.int8),
+        }
+
+    def observations(self) -> dict[str, NDArray]:
+        """Every env's observation as batched arrays (the vector env's)."""
+        follower = self.ego
+        steps = np.arange(self.path_points)[None, :]
+        count = follower.path_length - follower.path_start
+        index = np.minimum(follower.path_start[:, None] + steps, self.path_points - 1)
+        previous = follower.path[np.arange(self.envs)[:, None], index]
+        previous[steps >= count[:, None]] = 0.0
+        return {
+            "ego": self.ego_array().astype(np.float32),
+            "previous_path": previous.astype(np.float32),
+            "previous_path_count": count.astype(np.int64),
+            "end_path": self.end_sd.astype(np.float32),
+            "sensor_fusion": self.fusion.astype(np.float32),
+            "sensor_fusion_mask": self.fusion_mask.astype(np.int8),
+        }
+
+    def lane(self, env: int) -> int:
+        lane = math.floor(self.d[env] / self.road.lane_width)
+        return min(max(lane, -1), self.road.lane_count)  # as HighwayMap.lane_of
+
+    def is_success(self, env: int) -> bool:
+        return bool(self.metrics.laps[env] >= self.config["laps"])
+
+    def summary(self, env: int) -> dict[str, Any]:
+        """Env ``env``'s episode summary so far (``info["summary"]`` at the end)."""
+        summary = self.metrics.summary(env)
+        summary["is_success"] = self.is_success(env)
+        summary["termination_reason"] = self.done_reason[env]
+        summary["collided"] = bool(self.collided[env])
+        summary["incident_log"] = [incident.as_dict()
+                                   for incident in self.metrics.incidents[env]]
+        return summary
+
+    def telemetry_arguments(self, env: int) -> tuple[Any, ...]:
+        """Arguments of :func:`~sdc_gym.sensors.highway_sensors.telemetry_message` for
+        env ``env`` (arrays copied: the message is built lazily)."""
+        fusion = self.fusion[env]
+        rows = fusion.copy() if self._all_rows_present else fusion[self.fusion_mask[env]]
+        return (*self.ego.xy[env].tolist(), float(self.ego.yaw[env]), float(self.speed[env]),
+                float(self.s[env]), float(self.d[env]), self.ego.remaining(env).copy(),
+                *self.end_sd[env].tolist(), rows, self.telemetry_frenet)
+
+
+def incident_kinds(incidents: tuple[Incident, ...] | list[Incident]) -> list[str]:
+    return [incident.kind for incident in incidents]

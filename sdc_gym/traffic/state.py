@@ -1,0 +1,134 @@
+"""The traffic of a batch of envs as arrays: one row per env, one column per car.
+
+:class:`TrafficState` holds every per-car quantity as an ``(envs, cars)`` array and every
+per-env one as an ``(envs,)`` array; nothing else of the traffic changes during an
+episode. The kernels (:mod:`sdc_gym.traffic.kinematics`, :mod:`sdc_gym.traffic.decisions`,
+:mod:`sdc_gym.traffic.placement`) are functions of such a state, so a subset of the envs
+(those at a decision instant) is worked on by taking its rows (:meth:`TrafficState.take`)
+and writing them back (:meth:`TrafficState.put`).
+"""
+
+from __future__ import annotations
+
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+IntArray = NDArray[np.int64]
+
+NEVER = -(2**40)  # a step index long past: "no lane change started"
+IDLE = 2**62  # lane-change end step of a car that is not changing lanes
+
+
+class TrafficState:
+    """The arrays of a batch's traffic (see the module docstring).
+
+    Per car, ``(envs, cars)``: ``ids`` (the fixed slots ``0..cars-1``: a respawned car
+    keeps its slot's id, as in the original), ``spawn_count`` (respawns of the slot since
+    the reset), ``type_index``, ``length``, ``width``,
+    ``half_length``, ``a_max`` and ``tsab`` (IDM ``a_max`` and ``2 sqrt(a_max b)``), ``s``
+    (wrapped), ``d``, ``speed``, ``desired`` (IDM ``v0``), ``origin`` and ``target_lane``
+    (equal unless changing lanes), ``x``, ``y``, ``heading``, ``vx``, ``vy`` (the pose of
+    the latest frame), ``kappa`` (curvature at the last decision), ``acc`` and
+    ``half_acc`` (held between decisions), the lateral wander's ``omega``, ``phase`` and
+    ``wander_speed``, the lane change's ``lc_start``, ``lc_end`` and ``lc_duration``, the
+    wish being sustained (``pending`` lane, ``held`` decisions), the rogue timers
+    ``brake_until`` and ``cut_in_until``, and ``respawn_wait``.
+
+    Per env, ``(envs,)``: ``step`` (physics frames since the reset),
+    ``respawn_blocked_until``, ``rogue_brake_count``, ``rogue_cut_in_count`` and the ego's
+    latest ``ego_s``, ``ego_d``, ``ego_speed``.
+    """
+
+    CAR_FLOATS: ClassVar[tuple[str, ...]] = (
+        "length", "width", "half_length", "a_max", "tsab", "s", "d", "speed", "desired",
+        "x", "y", "heading", "vx", "vy", "kappa", "acc", "half_acc", "omega", "phase",
+        "wander_speed", "lc_duration")
+    CAR_INTS: ClassVar[tuple[str, ...]] = (
+        "ids", "spawn_count", "type_index", "origin", "target_lane", "lc_start", "lc_end",
+        "pending", "held", "brake_until", "cut_in_until", "respawn_wait")
+    ENV_INTS: ClassVar[tuple[str, ...]] = (
+        "step", "respawn_blocked_until", "rogue_brake_count", "rogue_cut_in_count")
+    ENV_FLOATS: ClassVar[tuple[str, ...]] = ("ego_s", "ego_d", "ego_speed")
+    FIELDS: ClassVar[tuple[str, ...]] = CAR_FLOATS + CAR_INTS + ENV_INTS + ENV_FLOATS
+
+    # Declared for type checkers; set by __init__ / take.
+    length: FloatArray
+    width: FloatArray
+    half_length: FloatArray
+    a_max: FloatArray
+    tsab: FloatArray
+    s: FloatArray
+    d: FloatArray
+    speed: FloatArray
+    desired: FloatArray
+    x: FloatArray
+    y: FloatArray
+    heading: FloatArray
+    vx: FloatArray
+    vy: FloatArray
+    kappa: FloatArray
+    acc: FloatArray
+    half_acc: FloatArray
+    omega: FloatArray
+    phase: FloatArray
+    wander_speed: FloatArray
+    lc_duration: FloatArray
+    ids: IntArray
+    spawn_count: IntArray
+    type_index: IntArray
+    origin: IntArray
+    target_lane: IntArray
+    lc_start: IntArray
+    lc_end: IntArray
+    pending: IntArray
+    held: IntArray
+    brake_until: IntArray
+    cut_in_until: IntArray
+    respawn_wait: IntArray
+    step: IntArray
+    respawn_blocked_until: IntArray
+    rogue_brake_count: IntArray
+    rogue_cut_in_count: IntArray
+    ego_s: FloatArray
+    ego_d: FloatArray
+    ego_speed: FloatArray
+
+    def __init__(self, envs: int, cars: int, lane_change_duration: float = 0.0) -> None:
+        self.envs = envs
+        self.cars = cars
+        for name in self.CAR_FLOATS:
+            setattr(self, name, np.zeros((envs, cars)))
+        for name in self.CAR_INTS:
+            setattr(self, name, np.zeros((envs, cars), dtype=np.int64))
+        for name in self.ENV_INTS:
+            setattr(self, name, np.zeros(envs, dtype=np.int64))
+        for name in self.ENV_FLOATS:
+            setattr(self, name, np.zeros(envs))
+        self.clear_rows(slice(None), lane_change_duration)
+
+    def clear_rows(self, rows: slice | IntArray | int, lane_change_duration: float) -> None:
+        """Start rows afresh (before a placement writes their cars)."""
+        for name in self.FIELDS:
+            getattr(self, name)[rows] = 0
+        self.ids[rows] = np.arange(self.cars)  # fixed slots, as the original's cars
+        self.lc_start[rows] = NEVER
+        self.lc_end[rows] = IDLE
+        self.pending[rows] = -1
+        self.lc_duration[rows] = lane_change_duration
+
+    def take(self, rows: IntArray) -> TrafficState:
+        """A new state holding copies of ``rows``."""
+        sub = object.__new__(TrafficState)
+        sub.envs = len(rows)
+        sub.cars = self.cars
+        for name in self.FIELDS:
+            setattr(sub, name, getattr(self, name)[rows])
+        return sub
+
+    def put(self, rows: IntArray, sub: TrafficState) -> None:
+        """Write ``sub`` (taken with :meth:`take`) back into ``rows``."""
+        for name in self.FIELDS:
+            getattr(self, name)[rows] = getattr(sub, name)
