@@ -53,6 +53,7 @@ import yaml
 import sdc_gym  # noqa: F401  (registers the env ids)
 from evaluation.files import atomic_write_text
 from training.driving_metrics import driving_metrics
+from training.yaml_files import read_yaml
 
 ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
 """stable-baselines3's algorithms (``--framework sb3``, the default)."""
@@ -155,18 +156,6 @@ def load_hyperparams(algo: str, env_id: str, framework: str = "sb3") -> dict[str
                          f"(--framework {framework})")
     table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
     return dict(table.get(env_id) or {})
-
-
-def read_yaml(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise SystemExit(f"{path}: no such file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as error:
-        raise SystemExit(f"{path}: not valid YAML: {error}") from None
-    if not isinstance(data, dict):
-        raise SystemExit(f"{path}: expected a mapping")
-    return data
 
 
 def run_config(args: argparse.Namespace) -> dict[str, Any]:

@@ -7,6 +7,7 @@ env id, overrides), then trains with stable-baselines3 itself or hands the run t
 
 * :mod:`~training.driving_metrics`: an episode's driving summary as TensorBoard scalars
   (``driving/``), the same for SB3 and RLlib;
+* :mod:`~training.yaml_files`: run configs and sweep files read with clear errors;
 * :mod:`~training.rllib_config`: an RLlib ``AlgorithmConfig`` from the run config
   (``configs/hyperparams/rllib_<algo>.yaml``), with clear errors for unknown keys;
 * :mod:`~training.rllib_callbacks`: the RLlib callback that logs the driving metrics in

@@ -55,6 +55,7 @@ from evaluation.files import atomic_write_text
 from sdc_gym.ray import LOCAL, ray_session
 from training.rllib_config import algorithm_config, config_class, with_keys
 from training.rllib_trainer import BEST_FOLDER, STEPS_KEY, replace_folder
+from training.yaml_files import read_yaml
 
 SWEEP_KEYS = {"algo", "num_samples", "max_concurrent_trials", "metric", "mode", "timesteps",
               "n_envs", "checkpoint_frequency", "scheduler", "search_space"}
@@ -72,14 +73,7 @@ TRIALS_FILE = "trials.csv"
 def read_sweep(path: Path) -> dict[str, Any]:
     """The sweep file at ``path``, checked and with its defaults (``SystemExit`` naming
     the key, the value and the valid choices for anything wrong)."""
-    if not path.is_file():
-        raise SystemExit(f"--tune {path}: no such file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as error:
-        raise SystemExit(f"--tune {path}: not valid YAML: {error}") from None
-    if not isinstance(data, dict):
-        raise SystemExit(f"--tune {path}: expected a mapping")
+    data = read_yaml(path, "--tune ")
     unknown = set(data) - SWEEP_KEYS
     if unknown:
         raise SystemExit(f"--tune {path}: unknown keys {sorted(unknown)}; valid: "
