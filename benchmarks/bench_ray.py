@@ -55,6 +55,23 @@ def episodes_per_minute(backend, specs) -> tuple[float, list[dict]]:
     return 60.0 * len(specs) / wall, runs.results
 
 
+RLLIB_TIMERS = {"env_step_timer": "env step",
+                "rlmodule_inference_timer": "RLModule forward",
+                "env_to_module_connector/connector_pipeline_timer": "env-to-module connectors",
+                "module_to_env_connector/connector_pipeline_timer": "module-to-env connectors"}
+"""RLlib's own per-step timers of its env runners (seconds, means over the iteration)."""
+LAST_TIMERS: dict[str, float] = {}
+
+
+def _nested(result: dict, path: str) -> float | None:
+    node = result
+    for part in path.split("/"):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return float(node)
+
+
 def rllib_samples_per_second(samples: int, n_envs: int) -> float:
     import torch
 
@@ -72,8 +89,11 @@ def rllib_samples_per_second(samples: int, n_envs: int) -> float:
         started = time.perf_counter()
         steps = first
         while steps - first < samples:
-            steps = int(algo.train()["num_env_steps_sampled_lifetime"])
+            result = algo.train()
+            steps = int(result["num_env_steps_sampled_lifetime"])
         wall = time.perf_counter() - started
+        LAST_TIMERS.update({name: value * 1000 for key, name in RLLIB_TIMERS.items()
+                            if (value := _nested(result["env_runners"], key)) is not None})
     finally:
         algo.stop()
     return (steps - first) / wall
@@ -136,6 +156,8 @@ def main() -> None:
         print(f"{name:<{width}}  {value:8.1f}")
     print(f"ratio episodes/min (Ray / pool): {best['ray'] / best['pool']:.2f}")
     print(f"ratio PPO samples/s (RLlib / SB3): {best['rllib'] / best['sb3']:.2f}")
+    print("RLlib's env runner timers per step, last iteration (ms): " + ", ".join(
+        f"{name} {value:.2f}" for name, value in LAST_TIMERS.items()))
     print("every round: " + "; ".join(f"{name} " + " ".join(f"{v:.1f}" for v in values)
                                       for name, values in rates.items()))
     print(f"load average (1, 5, 15 min) before {load[0]:.1f} {load[1]:.1f} {load[2]:.1f}, "

@@ -40,8 +40,6 @@ from sdc_gym import ENV_IDS
 
 LOCAL = "local"
 """The ``address`` of :func:`ray_session` that starts a local cluster for the session."""
-
-
 START_A_CLUSTER = ("start one with `ray start --head` (then 'auto' finds it), or run "
                    "without an address for a local cluster")
 
@@ -49,9 +47,11 @@ START_A_CLUSTER = ("start one with `ray start --head` (then 'auto' finds it), or
 def unreachable(address: str, timeout_s: float = 5.0) -> str | None:
     """Why no Ray cluster answers at ``address`` (``"auto"``: the one the last
     ``ray start`` on this machine recorded, or ``RAY_ADDRESS``), or None when its GCS port
-    accepts a connection."""
-    from ray._private.services import canonicalize_bootstrap_address  # Ray's own lookup
-
+    accepts a connection (or when this Ray has no such lookup: ``ray.init`` decides)."""
+    try:
+        from ray._private.services import canonicalize_bootstrap_address  # Ray's lookup
+    except ImportError:
+        return None
     try:
         resolved = canonicalize_bootstrap_address(address)
     except (ValueError, ConnectionError) as error:

@@ -75,8 +75,9 @@ def latest_checkpoint(folder: Path) -> Path | None:
 
 
 def replace_folder(source: Path, target: Path) -> None:
-    """Put the finished folder ``source`` at ``target`` (an old ``target`` is moved
-    aside first and removed after, so ``target`` is always one whole checkpoint)."""
+    """Put the finished folder ``source`` at ``target``: an old ``target`` is renamed
+    aside first and removed after, so ``target`` is the old or the new whole folder (or,
+    between the two renames, absent), never a mix of both."""
     old = target.with_name(f".{target.name}.old")
     if old.exists():
         shutil.rmtree(old)
