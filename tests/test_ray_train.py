@@ -142,7 +142,7 @@ def test_rllib_policy_drives_the_path_level_env_as_in_its_behavior_env(ppo_run, 
     assert training_config(output / "checkpoints" / "ppo_256_steps")[1] == SHORT
 
 
-def test_rllib_dqn_trains_on_the_track_behavior_env(cluster, tmp_path):
+def test_rllib_dqn_trains_on_the_track_behavior_env(cluster, tmp_path, capsys):
     from agents.registry import make_agent
 
     output = tmp_path / "dqn"
@@ -171,7 +171,21 @@ def test_rllib_dqn_trains_on_the_track_behavior_env(cluster, tmp_path):
     # the final buffer holds both parts (a fresh buffer would hold 100).
     for name in ("checkpoints/dqn_200_steps", "model"):
         shutil.rmtree(output / name)
+    # A torn newest checkpoint (no RLlib metadata) is skipped; a checkpoint whose replay
+    # buffer is gone is refused (before any cluster work) unless --resume-without-buffer.
+    torn = output / "checkpoints" / "dqn_300_steps"
+    torn.mkdir()
+    (torn / "algorithm_state.pkl").write_bytes(b"cut short")
+    buffer = output / "checkpoints" / "dqn_100_steps" / "replay_buffer.pkl"
+    buffer.rename(tmp_path / "aside.pkl")
+    with pytest.raises(SystemExit, match=r"--resume: no checkpoint .* can be resumed with its "
+                                         r"replay buffer .*skipped dqn_300_steps: not a whole "
+                                         r"RLlib checkpoint .*--resume-without-buffer"):
+        train.main(["--output", str(output), "--resume", "--no-progress"])
+    (tmp_path / "aside.pkl").rename(buffer)
     model = train.main(["--output", str(output), "--resume", "--no-progress"])
+    assert "--resume: skipped dqn_300_steps: not a whole RLlib checkpoint (no rllib_checkpoint" \
+           ".json)" in capsys.readouterr().out
     assert buffered(model) == 200
     # The track policy sits in the drive-by-wire stack of TrackLoop-v0.
     env = gym.make("sdc_gym/TrackLoop-v0", config={"observe_light_states": True,
@@ -231,8 +245,30 @@ def test_bad_rllib_settings_are_clear_errors_before_any_cluster(tmp_path, capsys
                                          r"fcnet_hiddens"):
         train.main(["--framework", "rllib", "--config", config, "--output",
                     str(tmp_path / "b"), "--hp", "model.hidden=[8]", "--no-progress"])
-    with pytest.raises(SystemExit, match=r"unknown algo 'sac' for --framework rllib; "
-                                         r"valid: \['ppo', 'dqn'\]"):
+    # Values: RLlib's annotations, the common ranges, finiteness, RLlib's own validate();
+    # the run config's precedence and checks as for SB3.
+    for index, (options, message) in enumerate([
+            (["--hp", "lr=abc"],
+             r"hyperparameter 'lr' of rllib ppo must be Union\[float, .*got 'abc' \(str\)"),
+            (["--hp", "gamma=1.5"],
+             r"config key 'gamma' must be a finite number in \[0, 1\], got 1.5"),
+            (["--hp", "entropy_coeff=.nan"], r"'entropy_coeff' must be a finite number"),
+            (["--hp", "model.fcnet_hiddens=64"], r"'model.fcnet_hiddens' of rllib ppo must "
+                                                 r"be List\[int\], got 64"),
+            (["--hp", "env_runners.rollout_fragment_length=0"],
+             r"'env_runners.rollout_fragment_length' must be an int in \[1, "),
+            (["--hp", "minibatch_size=4096"], r"RLlib refuses the config: `minibatch_size` "
+                                              r"\(4096\) must be <= "),
+            (["--seed", "-1"], r"config key 'seed' must be an int in \[0, 4294967295\]"),
+            (["--hp", "model.fcnet_hiddens=[8]", "--config", str(run_config(
+                tmp_path, config={"highway": {"traffic": {"car_count": -1}}}))],
+             r"config key 'traffic.car_count' must be an int in \[0, ")]):
+        with pytest.raises(SystemExit, match=message):
+            train.main(["--framework", "rllib", "--config", config, "--output",
+                        str(tmp_path / f"v{index}"), *options, "--no-progress"])
+        assert not (tmp_path / f"v{index}").exists()
+    with pytest.raises(SystemExit, match=r"config key 'algo' must be one of \['ppo', 'dqn'\] "
+                                         r"for framework rllib, got 'sac'"):
         train.main(["--framework", "rllib", "--algo", "sac", "--config", config,
                     "--output", str(tmp_path / "c")])
     with pytest.raises(SystemExit):
@@ -240,13 +276,26 @@ def test_bad_rllib_settings_are_clear_errors_before_any_cluster(tmp_path, capsys
     assert "--tune sweeps with Ray Tune over RLlib runs" in capsys.readouterr().err
     bad = tmp_path / "bad_sweep.yaml"
     for content, message in [
-            ({"search_space": {"lr": {"uniformly": [0, 1]}}}, "must be one of"),
-            ({"search_space": {"lr": {"choice": [1]}}, "mode": "maximum"},
-             r"mode 'maximum'; valid: \['max', 'min'\]"),
-            ({"search_space": {"lr": {"choice": [1]}}, "schedulers": {}},
+            ({"search_space": {"lr": {"uniformly": [0, 1]}}},
+             r"config key 'search_space.lr' must be one of \['uniform', "),
+            ({"search_space": {"lr": {"choice": [1e-3]}}, "mode": "maximum"},
+             r"config key 'mode' must be one of \['max', 'min'\], got 'maximum'"),
+            ({"search_space": {"lr": {"choice": [1e-3]}}, "schedulers": {}},
              r"unknown keys \['schedulers'\]"),
-            ({"search_space": {"lr": {"choice": [1]}}, "scheduler": {"type": "pbt"}},
-             r"scheduler type 'pbt'; valid: \['asha', 'none'\]")]:
+            ({"search_space": {"lr": {"choice": [1e-3]}}, "scheduler": {"type": "pbt"}},
+             r"config key 'scheduler.type' must be one of \['asha', 'none'\], got 'pbt'"),
+            ({"search_space": {"lr": {"choice": [1e-3]}},
+              "scheduler": {"type": "asha", "grace_period": 0}},
+             r"config key 'scheduler.grace_period' must be None or an int in \[1, "),
+            ({"search_space": {"lr": {"loguniform": [0.0, 1e-3]}}},
+             r"config key 'search_space.lr' must be arguments Tune takes"),
+            ({"search_space": {"lr": {"choice": [1e-3, 5.0]}}},
+             r"search_space.lr\).*config key 'lr' must be a finite number in \(0, 1\], "
+             r"got 5.0"),
+            ({"search_space": {"num_epochs": {"choice": [2, 2.5]}}},
+             r"hyperparameter 'num_epochs' of rllib ppo must be .*int.*got 2.5"),
+            ({"search_space": {"lr": {"choice": [1e-3]}}, "algo": "sac"},
+             r"config key 'algo' must be one of \['ppo', 'dqn'\], got 'sac'")]:
         bad.write_text(yaml.safe_dump(content))
         with pytest.raises(SystemExit, match=message):
             train.main(["--tune", str(bad), "--config", config, "--output",
@@ -266,9 +315,10 @@ def test_committed_rllib_hyperparameters_and_sweeps_are_valid():
             params = train.load_hyperparams(algo, env_id, "rllib")
             assert params, f"rllib_{algo}.yaml has no entry for {env_id}"
             hyper = {k: v for k, v in params.items() if k not in ("n_envs", "timesteps")}
-            check_run_config({"algo": algo, "env": env_id, "hyperparams": hyper})
+            run = {"algo": algo, "env": env_id, "hyperparams": hyper, "config": {},
+                   "n_envs": params["n_envs"], "seed": 0}
+            check_run_config(run)
             for path in sweeps:
                 sweep = read_sweep(path)
                 if sweep.get("algo", "ppo") == algo:
-                    check_run_config({"algo": algo, "env": env_id, "hyperparams": hyper,
-                                      "tune": sweep})
+                    check_run_config({**run, "tune": sweep})

@@ -34,6 +34,7 @@ run is shut down at its end, also on Ctrl-C.
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import pickle
 import shutil
@@ -43,6 +44,7 @@ from typing import Any
 
 import numpy as np
 
+from agents import checkpoints as ckpt
 from sdc_gym.ray import LOCAL, ray_session
 from training.driving_metrics import PREFIX as DRIVING_PREFIX
 from training.rllib_config import algorithm_config
@@ -52,6 +54,7 @@ BEST_FOLDER = "best_model"
 CHECKPOINTS_FOLDER = "checkpoints"
 EVALUATIONS_FILE = "evaluations.npz"
 REPLAY_BUFFER_FILE = "replay_buffer.pkl"
+RLLIB_METADATA = "rllib_checkpoint.json"
 OFF_POLICY = ("dqn",)
 """Algorithms with a replay buffer: kept in the run's checkpoints and final model."""
 STEPS_KEY = "num_env_steps_sampled_lifetime"
@@ -62,16 +65,43 @@ def checkpoint_name(algo: str, steps: int) -> str:
     return f"{algo}_{steps}_steps"
 
 
-def checkpoint_steps(path: Path) -> int:
-    """The env steps of a checkpoint folder named ``<algo>_<steps>_steps``."""
-    return int(path.name.rsplit("_", 2)[-2])
+def rllib_checkpoints(folder: Path, algo: str) -> list[tuple[int, Path]]:
+    """``(steps, path)`` of the checkpoint folders ``<algo>_<steps>_steps``, newest first
+    (a half-written one never has its final name: :func:`save_checkpoint`)."""
+    found = []
+    for path in folder.glob(f"{algo}_*_steps") if folder.is_dir() else ():
+        steps = path.name[len(algo) + 1:-len("_steps")]
+        if path.is_dir() and steps.isdigit():
+            found.append((int(steps), path))
+    return sorted(found, reverse=True)
 
 
-def latest_checkpoint(folder: Path) -> Path | None:
-    """The checkpoint folder with the most env steps (half-written ones never have the
-    final name)."""
-    found = [path for path in folder.glob("*_steps") if path.is_dir()] if folder.is_dir() else []
-    return max(found, key=checkpoint_steps, default=None)
+def checkpoint_problem(path: Path) -> str | None:
+    """Why an RLlib checkpoint folder cannot be restored (None: it looks whole): RLlib
+    writes ``rllib_checkpoint.json`` (its metadata, JSON) into every checkpoint."""
+    metadata = path / RLLIB_METADATA
+    try:
+        json.loads(metadata.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        return f"not a whole RLlib checkpoint (no {RLLIB_METADATA})"
+    except (OSError, ValueError) as error:
+        return f"not a whole RLlib checkpoint ({RLLIB_METADATA}: {error})"
+    return None
+
+
+def resume_point(checkpoints: Path, algo: str, without_buffer: bool) -> ckpt.ResumePoint | None:
+    """The newest checkpoint to resume from, as for an SB3 run
+    (:func:`agents.checkpoints.resume_point`): a torn one is skipped with a note; for DQN
+    its replay buffer must load, unless ``without_buffer`` (``--resume-without-buffer``).
+    ``SystemExit`` when checkpoints exist but none can be resumed."""
+    try:
+        return ckpt.resume_point(checkpoints, algo, algo in OFF_POLICY,
+                                 without_buffer=without_buffer,
+                                 found=rllib_checkpoints(checkpoints, algo),
+                                 check_model=checkpoint_problem,
+                                 buffer_of=lambda path, _: path / REPLAY_BUFFER_FILE)
+    except ValueError as error:
+        raise SystemExit(f"--resume: {error}") from None
 
 
 def replace_folder(source: Path, target: Path) -> None:
@@ -89,9 +119,9 @@ def replace_folder(source: Path, target: Path) -> None:
 
 
 def save_checkpoint(algo: Any, target: Path, replay_buffer: bool = False) -> Path:
-    """``algo.save_to_path`` into a temporary sibling of ``target``, then renamed; with
-    ``replay_buffer``, the off-policy algorithm's buffer too (:data:`REPLAY_BUFFER_FILE`:
-    RLlib's new API stack leaves it out of its checkpoints)."""
+    """``algo.save_to_path`` into a temporary sibling of ``target``, flushed to disk, then
+    renamed; with ``replay_buffer``, the off-policy algorithm's buffer too
+    (:data:`REPLAY_BUFFER_FILE`: RLlib's new API stack leaves it out of its checkpoints)."""
     temporary = target.with_name(f".{target.name}.tmp")
     if temporary.exists():
         shutil.rmtree(temporary)
@@ -99,19 +129,20 @@ def save_checkpoint(algo: Any, target: Path, replay_buffer: bool = False) -> Pat
     algo.save_to_path(str(temporary.resolve()))
     buffer = getattr(algo, "local_replay_buffer", None)
     if replay_buffer and buffer is not None:
-        with (temporary / REPLAY_BUFFER_FILE).open("wb") as handle:
+        with ckpt.atomic_file(temporary / REPLAY_BUFFER_FILE) as handle:
             pickle.dump(buffer.get_state(), handle, protocol=pickle.HIGHEST_PROTOCOL)
+    ckpt.sync_folder(temporary)
     replace_folder(temporary, target)
     return target
 
 
-def restore_checkpoint(algo: Any, source: Path) -> None:
-    """The algorithm's state from ``source``, and its replay buffer when saved there."""
+def restore_checkpoint(algo: Any, source: Path, replay_buffer: Path | None = None) -> None:
+    """The algorithm's state from ``source``, and its replay buffer from ``replay_buffer``
+    (None: the buffer stays empty)."""
     algo.restore_from_path(str(source.resolve()))
-    saved = source / REPLAY_BUFFER_FILE
     buffer = getattr(algo, "local_replay_buffer", None)
-    if saved.is_file() and buffer is not None:
-        with saved.open("rb") as handle:
+    if replay_buffer is not None and buffer is not None:
+        with replay_buffer.open("rb") as handle:
             buffer.set_state(pickle.load(handle))
 
 
@@ -191,10 +222,9 @@ class Evaluation:
         self.timesteps.append(steps)
         self.results.append([float(r) for r in rewards])
         self.lengths.append([int(n) for n in lengths])
-        temporary = self.output / f".{EVALUATIONS_FILE}.tmp.npz"
-        np.savez(temporary, timesteps=np.array(self.timesteps),
-                 results=np.array(self.results), ep_lengths=np.array(self.lengths))
-        os.replace(temporary, self.output / EVALUATIONS_FILE)
+        with ckpt.atomic_file(self.output / EVALUATIONS_FILE) as handle:
+            np.savez(handle, timesteps=np.array(self.timesteps),
+                     results=np.array(self.results), ep_lengths=np.array(self.lengths))
         if mean > self.best:
             self.best = mean
             replace_folder(candidate, self.output / BEST_FOLDER)
@@ -217,7 +247,10 @@ def train_rllib(config: dict[str, Any], args: argparse.Namespace) -> Path:
 
     output: Path = args.output
     checkpoints = output / CHECKPOINTS_FOLDER
-    latest = latest_checkpoint(checkpoints) if args.resume else None
+    point = (resume_point(checkpoints, config["algo"], args.resume_without_buffer)
+             if args.resume else None)
+    if point is not None:
+        print("\n".join(point.report()))
     total = int(config["timesteps"])
     every = int(config["checkpoint_every"])
     buffered = config["algo"] in OFF_POLICY
@@ -226,9 +259,9 @@ def train_rllib(config: dict[str, Any], args: argparse.Namespace) -> Path:
         evaluation = writer = None
         try:
             steps = 0
-            if latest is not None:
-                restore_checkpoint(algo, latest)
-                steps = checkpoint_steps(latest)
+            if point is not None:
+                restore_checkpoint(algo, point.model, point.replay_buffer)
+                steps = point.steps
             evaluation = Evaluation(config, output, resumed_at=steps)
             writer = SummaryWriter(str(tensorboard_folder(output / "tensorboard",
                                                           config["algo"])))

@@ -52,8 +52,19 @@ from typing import Any
 import yaml
 
 from evaluation.files import atomic_write_text
+from sdc_gym.config import ConfigError
 from sdc_gym.ray import LOCAL, ray_session
-from training.rllib_config import algorithm_config, config_class, with_keys
+from sdc_gym.validation.rules import (
+    Choice,
+    Number,
+    Rule,
+    check_finite,
+    check_value,
+    fail,
+    lookup,
+)
+from sdc_gym.validation.run_config import MAX_N_ENVS, MAX_TIMESTEPS
+from training.rllib_config import ALGORITHMS, algorithm_config, config_class, with_keys
 from training.rllib_trainer import BEST_FOLDER, STEPS_KEY, replace_folder
 from training.yaml_files import read_yaml
 
@@ -70,41 +81,64 @@ EXPERIMENT = "sweep"
 TRIALS_FILE = "trials.csv"
 
 
+SWEEP_RULES: dict[str, Rule] = {
+    "num_samples": Number(1, 10**6, integer=True, unit="trials per grid point"),
+    "max_concurrent_trials": Number(1, 10**6, integer=True, optional=True),
+    "mode": Choice(MODES),
+    "timesteps": Number(1, MAX_TIMESTEPS, integer=True, optional=True,
+                        unit="env steps per trial"),
+    "n_envs": Number(1, MAX_N_ENVS, integer=True, optional=True),
+    "checkpoint_frequency": Number(1, integer=True, unit="iterations"),
+    "scheduler.type": Choice(SCHEDULERS),
+    "scheduler.grace_period": Number(1, MAX_TIMESTEPS, integer=True, optional=True,
+                                     unit="env steps"),
+    "scheduler.reduction_factor": Number(1.0, low_open=True, optional=True),
+}
+
+
 def read_sweep(path: Path) -> dict[str, Any]:
     """The sweep file at ``path``, checked and with its defaults (``SystemExit`` naming
-    the key, the value and the valid choices for anything wrong)."""
-    data = read_yaml(path, "--tune ")
+    the file, the key, the value and the valid choices for anything wrong)."""
+    owner = f"--tune {path}"
+    data = read_yaml(path, "--tune sweep file")
     unknown = set(data) - SWEEP_KEYS
     if unknown:
-        raise SystemExit(f"--tune {path}: unknown keys {sorted(unknown)}; valid: "
+        raise SystemExit(f"{owner}: unknown keys {sorted(unknown)}; valid: "
                          f"{sorted(SWEEP_KEYS)}")
     sweep = {**DEFAULTS, **data}
-    if sweep["mode"] not in MODES:
-        raise SystemExit(f"--tune {path}: mode {sweep['mode']!r}; valid: {list(MODES)}")
-    for key in ("num_samples", "max_concurrent_trials", "timesteps", "n_envs",
-                "checkpoint_frequency"):
-        value = sweep.get(key)
-        if value is not None and (not isinstance(value, int) or value < 1):
-            raise SystemExit(f"--tune {path}: {key} must be an integer >= 1, got {value!r}")
     scheduler = sweep["scheduler"]
     if not isinstance(scheduler, dict) or set(scheduler) - SCHEDULER_KEYS:
-        raise SystemExit(f"--tune {path}: scheduler must be a mapping of "
+        raise SystemExit(f"{owner}: config key 'scheduler' must be a mapping with keys of "
                          f"{sorted(SCHEDULER_KEYS)}, got {scheduler!r}")
-    if scheduler.get("type", "none") not in SCHEDULERS:
-        raise SystemExit(f"--tune {path}: scheduler type {scheduler.get('type')!r}; valid: "
-                         f"{list(SCHEDULERS)}")
+    sweep["scheduler"] = {"type": "none", **scheduler}
     space = sweep.get("search_space")
     if not isinstance(space, dict) or not space:
-        raise SystemExit(f"--tune {path}: search_space must map hyperparameters to "
-                         f"distributions, e.g. lr: {{loguniform: [1.0e-5, 1.0e-3]}}")
-    for key, distribution in space.items():
-        if (not isinstance(distribution, dict) or len(distribution) != 1
-                or next(iter(distribution)) not in DISTRIBUTIONS):
-            raise SystemExit(f"--tune {path}: search_space.{key} must be one of "
-                             f"{list(DISTRIBUTIONS)} with its arguments, got {distribution!r}")
-        if not isinstance(next(iter(distribution.values())), list):
-            raise SystemExit(f"--tune {path}: search_space.{key}: the arguments must be a "
-                             f"list, got {distribution!r}")
+        raise SystemExit(f"{owner}: config key 'search_space' must map hyperparameters to "
+                         f"distributions, e.g. lr: {{loguniform: [1.0e-5, 1.0e-3]}}, "
+                         f"got {space!r}")
+    if not isinstance(sweep["metric"], str) or not sweep["metric"]:
+        raise SystemExit(f"{owner}: config key 'metric' must be the name of a result, e.g. "
+                         f"{DEFAULTS['metric']}, got {sweep['metric']!r}")
+    try:
+        for key, rule in SWEEP_RULES.items():
+            found, value = lookup(sweep, key)
+            check_value(rule, value if found else None, owner, key)
+        if "algo" in sweep:
+            check_value(Choice(ALGORITHMS), sweep["algo"], owner, "algo")
+        for key, distribution in space.items():
+            if (not isinstance(distribution, dict) or len(distribution) != 1
+                    or next(iter(distribution)) not in DISTRIBUTIONS
+                    or not isinstance(next(iter(distribution.values())), list)):
+                raise fail(owner, f"search_space.{key}", f"one of {list(DISTRIBUTIONS)} "
+                           "with a list of its arguments", distribution)
+            check_finite(distribution, owner, prefix=f"search_space.{key}")
+            try:
+                tune_domain(distribution)  # Tune's own checks of the arguments
+            except (TypeError, ValueError, AssertionError) as error:
+                raise fail(owner, f"search_space.{key}", "arguments Tune takes "
+                           f"({type(error).__name__}: {error})", distribution) from None
+    except ConfigError as error:
+        raise SystemExit(str(error)) from None
     return sweep
 
 
@@ -164,8 +198,8 @@ def sweep(config: dict[str, Any], args: argparse.Namespace) -> Path:
             if settings.get("type", "none") == "asha":
                 scheduler = ASHAScheduler(
                     time_attr=STEPS_KEY, max_t=timesteps,
-                    grace_period=int(settings.get("grace_period", max(timesteps // 10, 1))),
-                    reduction_factor=float(settings.get("reduction_factor", 3)))
+                    grace_period=int(settings.get("grace_period") or max(timesteps // 10, 1)),
+                    reduction_factor=float(settings.get("reduction_factor") or 3))
             tuner = tune.Tuner(
                 trainable, param_space=param_space,
                 tune_config=tune.TuneConfig(

@@ -1,24 +1,20 @@
-"""YAML files of mappings (run configs, sweep files), read with clear errors."""
+"""YAML files of mappings (run configs, hyperparameter and sweep files), read with clear
+errors: UTF-8 of bounded size and YAML 1.2 numbers, as every sdc-gym file
+(:mod:`sdc_gym.validation.text_files`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-import yaml
+from sdc_gym.validation.text_files import read_yaml as read_yaml_file
 
 
-def read_yaml(path: Path, label: str = "") -> dict[str, Any]:
+def read_yaml(path: Path, what: str = "YAML file") -> dict[str, Any]:
     """The mapping in the YAML file at ``path`` ({} for an empty file); ``SystemExit``
-    naming the file (after ``label``, e.g. ``"--tune "``) when it is missing, not YAML or
-    not a mapping."""
-    where = f"{label}{path}"
-    if not path.is_file():
-        raise SystemExit(f"{where}: no such file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as error:
-        raise SystemExit(f"{where}: not valid YAML: {error}") from None
+    naming ``what`` file and the path when it is missing, not text, not YAML or not a
+    mapping."""
+    data = read_yaml_file(path, what, SystemExit) or {}
     if not isinstance(data, dict):
-        raise SystemExit(f"{where}: expected a mapping")
+        raise SystemExit(f"{path}: expected a mapping, got {type(data).__name__}")
     return data
