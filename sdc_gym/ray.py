@@ -21,7 +21,8 @@ Ray's registry, Gymnasium's module prefix does the same for any library that cal
 
 :func:`ray_session` connects to a running cluster (``"auto"``, an address) or starts a
 local one for the duration of a ``with`` block (and shuts it down after, Ctrl-C
-included), with the envs registered; evaluate.py and train.py use it for ``--ray``.
+included; a watchdog, :mod:`sdc_gym.ray_watchdog`, ends its processes if this process is
+killed), with the envs registered; evaluate.py and train.py use it for ``--ray``.
 
 Needs the optional extra: ``pip install -e ".[ray]"``.
 """
@@ -29,7 +30,10 @@ Needs the optional extra: ``pip install -e ".[ray]"``.
 from __future__ import annotations
 
 import functools
+import os
 import socket
+import subprocess
+import sys
 from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from typing import Any
@@ -114,17 +118,41 @@ def ray_session(address: str = LOCAL, num_cpus: int | None = None,
             problem = unreachable(address)
             if problem is not None:
                 raise ConnectionError(f"{problem}; {START_A_CLUSTER}")
-        try:
-            ray.init(**options)
-        except ConnectionError as error:
-            raise ConnectionError(f"cannot reach a Ray cluster at {address!r} ({error}); "
-                                  f"{START_A_CLUSTER}") from None
+    watchdog = start_watchdog() if owned and address == LOCAL else None
     try:
-        register_envs()
-        yield dict(ray.cluster_resources())
-    finally:
         if owned:
-            ray.shutdown()
+            try:
+                ray.init(**options)
+            except ConnectionError as error:
+                raise ConnectionError(f"cannot reach a Ray cluster at {address!r} ({error}); "
+                                      f"{START_A_CLUSTER}") from None
+        try:
+            register_envs()
+            yield dict(ray.cluster_resources())
+        finally:
+            if owned:
+                ray.shutdown()
+    finally:
+        if watchdog is not None:
+            stop_watchdog(watchdog)
+
+
+def start_watchdog() -> subprocess.Popen[bytes]:
+    """:mod:`sdc_gym.ray_watchdog` for this process's local cluster: it ends the cluster's
+    processes when this process dies, even by ``kill -9``, or closes its stdin."""
+    return subprocess.Popen([sys.executable, "-m", "sdc_gym.ray_watchdog", str(os.getpid())],
+                            stdin=subprocess.PIPE, start_new_session=True)
+
+
+def stop_watchdog(watchdog: subprocess.Popen[bytes], timeout_s: float = 10.0) -> None:
+    """Close the watchdog's stdin (it ends what is left of the cluster) and wait for it."""
+    assert watchdog.stdin is not None
+    watchdog.stdin.close()
+    try:
+        watchdog.wait(timeout=timeout_s)
+    except subprocess.TimeoutExpired:
+        watchdog.kill()
+        watchdog.wait()
 
 
 __all__ = ["LOCAL", "make_env", "ray_session", "register_envs", "unreachable"]
