@@ -200,6 +200,38 @@ def test_rllib_dqn_trains_on_the_track_behavior_env(cluster, tmp_path, capsys):
     assert info["distance"] > 0.0
 
 
+@pytest.mark.parametrize("algo, env_id, config, options", [
+    ("ppo", TRACK, {"track": {"max_duration": 30.0}}, TINY_PPO),
+    ("dqn", HIGHWAY, SHORT, ["--hp", "reporting.min_sample_timesteps_per_iteration=128",
+                             "--hp", "num_steps_sampled_before_learning_starts=64",
+                             "--hp", "training_intensity=4",
+                             "--hp", "replay_buffer_config.capacity=1000",
+                             "--hp", "model.fcnet_hiddens=[16]"]),
+], ids=["ppo_track", "dqn_highway"])
+def test_rllib_trains_the_other_pairs_of_algorithm_and_behavior_env(cluster, tmp_path, algo,
+                                                                    env_id, config, options):
+    """The other two pairs (PPO on the track, DQN on the highway) train from the committed
+    hyperparameter entries and give a policy that acts in the env's action space."""
+    from agents.rllib_policy import load_rllib_policy
+
+    output = tmp_path / "run"
+    model = train.main(["--framework", "rllib", "--algo", algo, "--config",
+                        str(run_config(tmp_path, env_id, config, eval={"every": 0})),
+                        "--output", str(output), "--n-envs", "1", "--timesteps", "256",
+                        *options, "--no-progress"])
+    saved = yaml.safe_load((output / "config.yaml").read_text())
+    assert (saved["framework"], saved["algo"], saved["env"]) == ("rllib", algo, env_id)
+    assert saved["hyperparams"]["gamma"] == 0.99  # rllib_<algo>.yaml's entry for the env
+    [checkpoint] = (output / "checkpoints").iterdir()
+    assert int(checkpoint.name.split("_")[1]) >= 256
+    env = gym.make(env_id, config=config)
+    policy = load_rllib_policy(model)
+    observation, _ = env.reset(seed=3)
+    action, _ = policy.predict(observation, deterministic=True)
+    assert env.action_space.contains(np.int64(action))
+    env.step(action)
+
+
 def test_tune_sweep_keeps_a_table_of_trials_and_the_best_checkpoint(cluster, tmp_path):
     from agents.rllib_policy import load_rllib_policy
 
