@@ -247,3 +247,20 @@ def test_kernel_math_is_pythons() -> None:
     for row, function in enumerate((math.hypot, math.remainder, max, min)):
         expected = np.array([function(x, y) for x, y in zip(a.tolist(), bb, strict=True)])
         assert np.array_equal(out[row].view(np.int64), expected.view(np.int64)), function
+
+
+def test_a_pickled_batch_continues_exactly_as_the_original() -> None:
+    """The bound kernel calls (machine code entry points) are dropped when pickling and
+    bound again to the copy's own arrays."""
+    import pickle
+
+    vector = TrackLoopBehaviorVectorEnv(3, {"track": {"max_duration": 30.0}})
+    vector.reset(seed=4)
+    for _ in range(3):
+        vector.step(np.array([0, 1, 3]))
+    clone = pickle.loads(pickle.dumps(vector))
+    for actions in ([1, 0, 2], [3, 3, 0], [2, 1, 1]):
+        ours, theirs = vector.step(np.array(actions)), clone.step(np.array(actions))
+        for a, b in zip(ours[:4], theirs[:4], strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert not np.shares_memory(vector.batch.observations, clone.batch.observations)
