@@ -20,12 +20,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
-from sdc_gym.geometry.collision import contact_reach_sq, first_contacts
-from sdc_gym.geometry.exact_math import hypot
+from sdc_gym.geometry.collision import first_contacts
+from sdc_gym.geometry.exact_math import py_hypot
 from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
@@ -101,6 +102,29 @@ class StepResult:
     terminated: NDArray[np.bool_]
     truncated: NDArray[np.bool_]
     incidents: list[Any]
+
+
+@njit(cache=True)
+def ego_points(xy: np.ndarray, speed: np.ndarray, s_before: np.ndarray, path: np.ndarray,
+               path_start: np.ndarray, path_length: np.ndarray, dt: float,
+               points: np.ndarray, guesses: np.ndarray, has_end: np.ndarray) -> None:
+    """The points to project per env (its frames, then its path's end, or the last frame
+    again when the path is used up) and their guessed s: the last s plus the distance
+    driven, the end its straight-line distance (CPython's ``math.hypot``) further on."""
+    envs, frames = speed.shape
+    for e in range(envs):
+        guess = s_before[e]
+        for f in range(frames):
+            guess += speed[e, f] * dt
+            guesses[e, f] = guess
+            points[e, f, 0], points[e, f, 1] = xy[e, f, 0], xy[e, f, 1]
+        has_end[e] = path_start[e] < path_length[e]
+        last = max(path_length[e] - 1, 0)
+        end_x = path[e, last, 0] if has_end[e] else xy[e, frames - 1, 0]
+        end_y = path[e, last, 1] if has_end[e] else xy[e, frames - 1, 1]
+        points[e, frames, 0], points[e, frames, 1] = end_x, end_y
+        guesses[e, frames] = guess + py_hypot(end_x - xy[e, frames - 1, 0],
+                                              end_y - xy[e, frames - 1, 1])
 
 
 class HighwayWorld:
@@ -187,6 +211,7 @@ class HighwayWorld:
         self.collided = np.zeros(envs, dtype=bool)
         self.done_reason = [""] * envs
         self.rngs: list[np.random.Generator | None] = [None] * envs
+        self._all_reset = False
         self._all_rows_present = self.sensor_config.dropout_probability == 0.0
 
     # ------------------------------------------------------------------ episodes
@@ -266,35 +291,37 @@ class HighwayWorld:
     def step(self, paths: FloatArray, lengths: IntArray) -> StepResult:
         """Every env sends its path (checked by :meth:`check_paths`) and the world runs
         ``steps_per_action`` physics frames."""
-        if any(rng is None for rng in self.rngs):
-            raise RuntimeError("call reset() before step()")
+        if not self._all_reset:
+            if any(rng is None for rng in self.rngs):
+                raise RuntimeError("call reset() before step()")
+            self._all_reset = True
         self.ego.send(paths, lengths)
         frames = self.steps_per_action
         xy, yaw, speed = self.ego.drive()
         s, d = self._project(xy, speed)
         samples = self.traffic.advance(frames, s, d, speed)
         st = self.traffic.state
-        contact = first_contacts(
-            xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
-            st.length, st.width, st.ids,
-            contact_reach_sq(self.ego_length, self.ego_width, st.length, st.width))
-        progress_before = self.metrics.progress
-        incidents = self.metrics.record(xy, s, d, speed, contact)
+        contact = first_contacts(xy, yaw, self.ego_length, self.ego_width, samples.x,
+                                 samples.y, samples.heading, st.length, st.width, st.ids)
+        metrics = self.metrics
+        progress_before = metrics.progress.copy()
+        incidents = metrics.record(xy, s, d, speed, contact)
         self.s, self.d, self.speed = s[:, -1], d[:, -1], speed[:, -1]
         self.read_sensors()
 
-        reward = self.progress_scale * (self.metrics.progress - progress_before)
+        reward = self.progress_scale * (metrics.progress - progress_before)
         collision = np.zeros(self.envs, dtype=bool)
-        for env, new in enumerate(incidents):
-            for incident in new:
+        for env in [env for env, new in enumerate(incidents) if new]:
+            for incident in incidents[env]:
                 reward[env] += self.incident_penalty[incident.kind]
                 if incident.kind == "collision":
                     collision[env] = True
         self.collided |= collision
         terminated = collision & self.config["terminate_on_collision"]
-        lapped = ~terminated & (self.metrics.laps >= self.config["laps"])
+        lapped = ~terminated & (metrics.laps >= self.config["laps"])
         terminated = terminated | lapped
-        truncated = ~terminated & (self.metrics.time() >= self.config["max_duration"] - 1e-9)
+        truncated = ~terminated & (metrics.steps * self.rules.dt
+                                   >= self.config["max_duration"] - 1e-9)
         for env in np.flatnonzero(terminated | truncated).tolist():
             self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
                                      and self.config["terminate_on_collision"]
@@ -305,19 +332,12 @@ class HighwayWorld:
         """Frenet s, d ``(envs, frames)`` of the ego's frames; the path's end point rides
         in the same projection (into :attr:`end_sd`)."""
         envs, frames = speed.shape
-        guesses = np.empty((envs, frames + 2))
-        guesses[:, 0] = self.s
-        guesses[:, 1:-1] = speed * PHYSICS_DT  # warm start: last s plus the distance driven
-        np.add.accumulate(guesses[:, :-1], axis=1, out=guesses[:, :-1])
-        follower = self.ego
-        has_end = follower.path_start < follower.path_length
-        end = follower.path[np.arange(envs), np.maximum(follower.path_length - 1, 0)]
-        end = np.where(has_end[:, None], end, xy[:, -1])
-        # The path's end lies about its straight-line distance ahead of the car.
-        guesses[:, -1] = guesses[:, -2] + hypot(end[:, 0] - xy[:, -1, 0],
-                                                end[:, 1] - xy[:, -1, 1])
-        points = np.concatenate([xy, end[:, None, :]], axis=1)
-        s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses[:, 1:])
+        points = np.empty((envs, frames + 1, 2))
+        guesses = np.empty((envs, frames + 1))
+        has_end = np.empty(envs, dtype=np.bool_)
+        ego_points(xy, speed, self.s, self.ego.path, self.ego.path_start,
+                   self.ego.path_length, PHYSICS_DT, points, guesses, has_end)
+        s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses)
         self.end_sd = np.where(has_end[:, None], np.stack([s[:, -1], d[:, -1]], axis=1), 0.0)
         return s[:, :-1], d[:, :-1]
 

@@ -3,13 +3,13 @@
 :class:`TrafficBatch` owns the constants (config, road tables), the
 :class:`~sdc_gym.traffic.state.TrafficState` of every env and each env's generator.
 :meth:`TrafficBatch.advance` moves all envs by the same number of physics frames: the
-envs whose decision instant falls on a frame decide together (their rows taken, decided by
-:func:`~sdc_gym.traffic.decisions.decide`, written back), and the motion between
-decisions is evaluated in closed form for all of them
-(:meth:`~sdc_gym.traffic.kinematics.TrafficGeometry.segment`). Envs reset at different
-times have different phases of the decision period, so one advance may hold several
-decision rounds, each for the envs of one phase. Env ``i`` of a batch is exactly a
-single env (a batch of one) with the same generator, frame for frame.
+envs whose decision instant falls on a frame decide together
+(:func:`~sdc_gym.traffic.decisions.decide`), and the motion between decisions is
+evaluated in closed form for all of them (:func:`~sdc_gym.traffic.kinematics.segments`).
+Envs reset at different times have different phases of the decision period, so one
+advance may hold several decision rounds: round ``j`` takes every env's ``j``-th decision
+of the window (each env's segment since its previous one first). Env ``i`` of a batch is
+exactly a single env (a batch of one) with the same generator, frame for frame.
 """
 
 from __future__ import annotations
@@ -20,9 +20,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.traffic import decisions
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
-from sdc_gym.traffic.kinematics import RowsOf, TrafficGeometry
+from sdc_gym.traffic.kinematics import TrafficGeometry
 from sdc_gym.traffic.placement import reset_row, reset_row_to
 from sdc_gym.traffic.state import TrafficState
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
@@ -73,16 +74,48 @@ class TrafficBatch:
         self.sustain_decisions = math.ceil(config.lane_change_sustain / self.decision_dt - 1e-9)
         self.ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
         self.ego_half_length = 0.5 * config.ego_length
-        # Constants of the decision kernel, shaped for its (envs, lanes, cars) arrays.
-        self.lane_column = self.lane_ids[None, :, None]
-        self.adjacent_of = self.adjacent.copy()  # [origin lane] -> adjacent lanes
-        self.penalty = np.array([np.inf, 0.0])  # [occupies]: 0 where the car is
-        self.ego_a_max = np.full((envs, 1), config.idm.a_max)
-        self.ego_tsab_column = np.full((envs, 1), self.ego_tsab)
-        self.ego_half_column = np.full((envs, 1), self.ego_half_length)
+        self.decision_constants = self._decision_constants()
         self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
-        self._all = np.arange(envs)
+        self._all = np.ones(envs, dtype=bool)
+        self._scratch_for(config.car_count)
+
+    def _decision_constants(self) -> FloatArray:
+        cfg, idm = self.config, self.config.idm
+        constants = np.zeros(decisions.CONSTANTS)
+        for index, value in (
+                (decisions.C_LOOP, self.loop), (decisions.C_RANGE, self.range),
+                (decisions.C_LANES, self.lanes), (decisions.C_LANE_WIDTH, self.lane_width),
+                (decisions.C_EGO_HALF_WIDTH, 0.5 * cfg.ego_width),
+                (decisions.C_EGO_HALF_LENGTH, self.ego_half_length),
+                (decisions.C_EGO_A_MAX, idm.a_max), (decisions.C_EGO_TSAB, self.ego_tsab),
+                (decisions.C_IDM_T, idm.T), (decisions.C_IDM_S0, idm.s0),
+                (decisions.C_IDM_MAX_BRAKING, idm.max_braking),
+                (decisions.C_IDM_FLOOR, float(idm.floor_desired_gap)),
+                (decisions.C_CLEARANCE, cfg.lane_change_clearance),
+                (decisions.C_MIN_GAIN, cfg.lane_change_min_gain),
+                (decisions.C_MAX_IMPOSED, cfg.lane_change_max_braking_imposed),
+                (decisions.C_MIN_SPEED, cfg.lane_change_min_speed),
+                (decisions.C_LC_DURATION, cfg.lane_change_duration),
+                (decisions.C_LC_STEPS, math.ceil(cfg.lane_change_duration / self.dt - 1e-9)),
+                (decisions.C_SUSTAIN, self.sustain_decisions),
+                (decisions.C_ROGUE_P, self.rogue_p),
+                (decisions.C_ROGUE_DECEL, cfg.rogue_brake_decel),
+                (decisions.C_BRAKE_STEPS, self.brake_steps),
+                (decisions.C_CUT_IN_WINDOW, self.cut_in_window_steps),
+                (decisions.C_CUT_IN_GAP, cfg.rogue_cut_in_gap),
+                (decisions.C_CUT_IN_DURATION, cfg.rogue_cut_in_duration),
+                (decisions.C_CUT_IN_STEPS,
+                 math.ceil(cfg.rogue_cut_in_duration / self.dt - 1e-9)),
+                (decisions.C_DECISION_DT, self.decision_dt)):
+            constants[index] = value
+        return constants
+
+    def _scratch_for(self, cars: int) -> None:
+        """Work arrays of the decision rounds (per env and object)."""
+        self.scratch_objects = (np.zeros((self.envs, cars + 1)), np.zeros((self.envs, cars + 1)))
+        self.scratch_far = np.zeros(self.envs, dtype=bool)
+        self.scratch_rogue = np.zeros((self.envs, 2 + self.lanes, cars))
 
     # ------------------------------------------------------------------ helpers
     def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
@@ -138,12 +171,10 @@ class TrafficBatch:
         self._settle_pose(env)
 
     def _settle_pose(self, env: int) -> None:
+        """Env ``env``'s curvature and pose after its placement."""
         st = self.state
-        rows = np.array([env])
-        sub = st.take(rows)
-        sub.kappa = self.geometry.curvature(sub.s)
-        self.geometry.update_pose(sub, self.geometry.samples_now(sub))
-        st.put(rows, sub)
+        st.kappa[env] = self.geometry.curvature(st.s[env])
+        self.geometry.update_pose(st, self.geometry.samples_now(st, env), env)
 
     # ------------------------------------------------------------------ motion
     def samples_now(self) -> TrafficSamples:
@@ -170,73 +201,35 @@ class TrafficBatch:
         st = self.state
         envs, cars = st.envs, st.cars
         shape = (envs, frames, cars)
-        s_out, d_out, v_out, dd_out = (np.empty(shape) for _ in range(4))
+        out = tuple(np.empty(shape) for _ in range(4))
+        if len(self.scratch_far) != envs or self.scratch_rogue.shape[2] != cars:
+            self._scratch_for(cars)
         period = self.config.decision_period
         step0 = st.step.copy()
         # Each env's decisions fall on frames k1, k1 + period, ... of the window. Round j
         # takes every env's j-th decision at once: first the segment since the previous
-        # one (from each env's own start, padded to the longest), then the decisions.
+        # one (from each env's own start), then the decisions.
         decision = (period - step0 % period) % period  # frame of each env's next decision
         segment_start = np.zeros(envs, dtype=np.int64)
         if cars:
             while True:
-                rows = np.flatnonzero(decision < frames) if envs > 1 else (
-                    self._all if decision[0] < frames else self._all[:0])
-                if not len(rows):
+                rows = decision < frames
+                if not rows.any():
                     break
-                begin, end = segment_start[rows], decision[rows]
-                self._segment_into(st, rows, begin, end - begin, step0,
-                                   (s_out, d_out, v_out, dd_out), keep_end=True)
-                whole = len(rows) == envs
-                sub = st if whole else st.take(rows)
-                before = end - 1  # the ego's latest state before the decision
-                moved = before >= 0
-                if np.count_nonzero(moved):
-                    at = rows[moved], before[moved]
-                    sub.ego_s[moved] = ego_s[at] % self.loop
-                    sub.ego_d[moved] = ego_d[at]
-                    sub.ego_speed[moved] = ego_speed[at]
-                sub.step = step0[rows] + end
-                decide(self, sub, [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
-                if not whole:
-                    st.put(rows, sub)
-                segment_start[rows] = end
-                decision[rows] = end + period
+                self.geometry.segments(st, rows, segment_start, decision, step0, out,
+                                       keep_end=True)
+                decide(self, rows, decision, step0, ego_s, ego_d, ego_speed)
+                segment_start = np.where(rows, decision, segment_start)
+                decision = np.where(rows, decision + period, decision)
             # The last segment of every env, from its last decision to the window's end.
-            self._segment_into(st, self._all, segment_start, frames - segment_start, step0,
-                               (s_out, d_out, v_out, dd_out), keep_end=False)
-        st.step = step0 + frames
-        st.ego_s = ego_s[:, -1] % self.loop
-        st.ego_d = ego_d[:, -1].copy()
-        st.ego_speed = ego_speed[:, -1].copy()
-        samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
+            self.geometry.segments(st, self._all, segment_start,
+                                   np.full(envs, frames, dtype=np.int64), step0, out,
+                                   keep_end=False)
+        st.step[:] = step0 + frames
+        st.ego_s[:] = ego_s[:, -1] % self.loop
+        st.ego_d[:] = ego_d[:, -1]
+        st.ego_speed[:] = ego_speed[:, -1]
+        samples = self.geometry.pose(*out)
         self.geometry.update_pose(st, samples)
         return samples
 
-    def _segment_into(self, st: TrafficState, rows: IntArray, begin: IntArray,
-                      length: IntArray, step0: IntArray, out: tuple[FloatArray, ...], *,
-                      keep_end: bool) -> None:
-        """Evaluate the segments of envs ``rows`` (``length`` frames from window frame
-        ``begin``) into the window arrays ``out``, one call per (begin, length) pair;
-        with ``keep_end``, a segment's end becomes its env's state."""
-        keys = begin * (out[0].shape[1] + 1) + length
-        groups = [rows] if len(rows) == 1 else [rows[keys == key] for key in np.unique(keys)]
-        every = len(rows) == self.envs
-        for group in groups:
-            first = int(np.flatnonzero(rows == group[0])[0]) if len(groups) > 1 else 0
-            b, m = int(begin[first]), int(length[first])
-            if m == 0:
-                continue
-            whole = every and len(group) == self.envs
-            source = st if whole else RowsOf(st, group)
-            s, d, v, d_dot = self.geometry.segment(source, m, step0[group] + b)
-            if whole:
-                out[0][:, b:b + m], out[1][:, b:b + m] = s, d
-                out[2][:, b:b + m], out[3][:, b:b + m] = v, d_dot
-            else:
-                out[0][group, b:b + m], out[1][group, b:b + m] = s, d
-                out[2][group, b:b + m], out[3][group, b:b + m] = v, d_dot
-            if keep_end:
-                st.s[group] = s[:, -1] % self.loop
-                st.speed[group] = v[:, -1]
-                st.d[group] = d[:, -1]
