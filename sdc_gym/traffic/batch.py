@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
-from sdc_gym.traffic import decisions
+from sdc_gym.traffic import decisions, placement
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
 from sdc_gym.traffic.kinematics import TrafficGeometry
@@ -75,6 +75,9 @@ class TrafficBatch:
         self.ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
         self.ego_half_length = 0.5 * config.ego_length
         self.decision_constants = self._decision_constants()
+        self.placement_constants = self._placement_constants()
+        cdf = self.type_p.cumsum()
+        self.type_cdf = cdf / cdf[-1]
         self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
         self._all = np.ones(envs, dtype=bool)
@@ -111,10 +114,26 @@ class TrafficBatch:
             constants[index] = value
         return constants
 
+    def _placement_constants(self) -> FloatArray:
+        cfg, idm = self.config, self.config.idm
+        constants = np.zeros(12)
+        for index, value in (
+                (placement.K_LOOP, self.loop), (placement.K_LANE_WIDTH, self.lane_width),
+                (placement.K_WANDER, cfg.lateral_wander), (placement.K_DT, self.dt),
+                (placement.K_MIN_GAP, cfg.spawn_min_gap),
+                (placement.K_EGO_HALF_WIDTH, 0.5 * cfg.ego_width),
+                (placement.K_EGO_HALF_LENGTH, self.ego_half_length),
+                (placement.K_EGO_A_MAX, idm.a_max), (placement.K_EGO_TSAB, self.ego_tsab),
+                (placement.K_IDM_T, idm.T), (placement.K_IDM_S0, idm.s0),
+                (placement.K_IDM_FLOOR, float(idm.floor_desired_gap))):
+            constants[index] = value
+        return constants
+
     def _scratch_for(self, cars: int) -> None:
         """Work arrays of the decision rounds (per env and object)."""
-        self.scratch_objects = (np.zeros((self.envs, cars + 1)), np.zeros((self.envs, cars + 1)))
-        self.scratch_far = np.zeros(self.envs, dtype=bool)
+        self.scratch_ratio = np.zeros((self.envs, cars + 1))
+        self.scratch_candidates = np.full((self.envs, self.config.respawn_per_decision), -1,
+                                          dtype=np.int64)
         self.scratch_rogue = np.zeros((self.envs, 2 + self.lanes, cars))
 
     # ------------------------------------------------------------------ helpers
@@ -202,7 +221,7 @@ class TrafficBatch:
         envs, cars = st.envs, st.cars
         shape = (envs, frames, cars)
         out = tuple(np.empty(shape) for _ in range(4))
-        if len(self.scratch_far) != envs or self.scratch_rogue.shape[2] != cars:
+        if len(self.scratch_ratio) != envs or self.scratch_rogue.shape[2] != cars:
             self._scratch_for(cars)
         period = self.config.decision_period
         step0 = st.step.copy()

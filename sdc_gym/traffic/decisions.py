@@ -50,6 +50,8 @@ from sdc_gym.traffic.kinematics import (
     LC_START,
     ORIGIN,
     PENDING,
+    RESPAWN_BLOCKED_UNTIL,
+    RESPAWN_WAIT,
     ROGUE_BRAKE_COUNT,
     ROGUE_CUT_IN_COUNT,
     SPEED,
@@ -85,19 +87,21 @@ _NOT_ZERO = 1e-2  # highway-env's utils.not_zero (sdc_gym.traffic.idm)
 def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
                     rows: np.ndarray, end: np.ndarray, step0: np.ndarray,
                     ego_s: np.ndarray, ego_d: np.ndarray, ego_speed: np.ndarray,
-                    constants: np.ndarray, rel: np.ndarray, ratio: np.ndarray,
-                    far: np.ndarray) -> int:
+                    constants: np.ndarray, ratio: np.ndarray, candidates: np.ndarray) -> int:
     """Step 1 for the envs with ``rows`` (at their window frame ``end``): the ego's
-    latest state before the decision, finished lane changes; each object's ``rel``
-    (s minus the ego's, folded) and IDM speed ratio ``max(v, 0) / v0`` (the ego "wants"
-    its current speed); ``far`` the envs with a car beyond the recycling range. Returns
-    how many are."""
+    latest state before the decision, finished lane changes; each object's IDM speed
+    ratio ``max(v, 0) / v0`` (the ego "wants" its current speed); and per env the cars to
+    recycle (``candidates``, -1 padded): those beyond the recycling range whose retry wait
+    is over, the farthest first (the first of equals), at most ``respawn_per_decision``,
+    none while the env's respawns pause. Returns how many envs have any."""
     loop = constants[C_LOOP]
     half = 0.5 * loop
     cars = cf.shape[2]
+    rel = np.empty(cars + 1)
+    taken = np.zeros(cars, dtype=np.bool_)
     count = 0
     for e in range(cf.shape[1]):
-        far[e] = False
+        candidates[e, :] = -1
         if not rows[e]:
             continue
         before = end[e] - 1  # the ego's latest state before the decision
@@ -112,13 +116,26 @@ def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarr
                 ci[ORIGIN, e, c] = ci[TARGET_LANE, e, c]
                 ci[LC_START, e, c] = NEVER
                 ci[LC_END, e, c] = IDLE
-        farthest = _relative(cf, ef, e, loop, half, rel[e])
-        far[e] = farthest > constants[C_RANGE]
-        count += far[e]
         ego_v0 = max(ef[EGO_SPEED, e], 0.1)
         for c in range(cars):
             ratio[e, c] = max(cf[SPEED, e, c], 0.0) / cf[DESIRED, e, c]
         ratio[e, cars] = max(ef[EGO_SPEED, e], 0.0) / ego_v0
+        if _relative(cf, ef, e, loop, half, rel) <= constants[C_RANGE] or (
+                now < ei[RESPAWN_BLOCKED_UNTIL, e]):
+            continue
+        taken[:] = False
+        for slot in range(candidates.shape[1]):
+            pick, farthest = -1, 0.0
+            for c in range(cars):
+                far = abs(rel[c])
+                if (not taken[c] and far > constants[C_RANGE]
+                        and ci[RESPAWN_WAIT, e, c] <= now and (pick < 0 or far > farthest)):
+                    pick, farthest = c, far
+            if pick < 0:
+                break
+            taken[pick] = True
+            candidates[e, slot] = pick
+        count += candidates[e, 0] >= 0
     return count
 
 
@@ -390,21 +407,18 @@ def decide(batch: TrafficBatch, rows: NDArray[np.bool_], end: IntArray, step0: I
     ego's ``(envs, frames)`` states."""
     st: TrafficState = batch.state
     cf, ci, ei, ef = st.blocks
-    cars = st.cars
-    rel, ratio = batch.scratch_objects
-    far = batch.scratch_far
+    ratio, candidates = batch.scratch_ratio, batch.scratch_candidates
     if begin_decisions(cf, ci, ei, ef, rows, end, step0, ego_s, ego_d, ego_speed,
-                       batch.decision_constants, rel, ratio, far):
-        for env in np.flatnonzero(far).tolist():
-            if recycle(batch, st, env, rel[env, :cars], batch.rngs[env]):
+                       batch.decision_constants, ratio, candidates):
+        for env in np.flatnonzero(candidates[:, 0] >= 0).tolist():
+            if recycle(batch, st, env, candidates[env], batch.rngs[env]):
                 # Cars moved: their speed ratios anew (the same operations).
-                ratio[env, :cars] = np.maximum(st.speed[env], 0.0) / st.desired[env]
+                ratio[env, :-1] = np.maximum(st.speed[env], 0.0) / st.desired[env]
     free = ratio ** batch.config.idm.delta
     rogue = batch.scratch_rogue
     if batch.rogue_p > 0.0:
-        shape = (2 + batch.lanes, cars)
+        shape = (2 + batch.lanes, st.cars)
         for env in np.flatnonzero(rows).tolist():
             rogue[env] = batch.rngs[env].random(shape)
     finish_decisions(cf, ci, ei, ef, rows, batch.decision_constants,
                      batch.geometry.kappa_grid, batch.geometry.kappa_table, free, rogue)
-
