@@ -16,7 +16,8 @@ millions of random pairs); for subnormal inputs (below 2.2e-308, never a distanc
 may differ in the last bit.
 
 The array functions (:func:`hypot`, :func:`atan2`, :func:`exp`, :func:`power`) apply them
-elementwise in one compiled loop.
+elementwise in one compiled loop. :func:`py_mod` is Python's float ``%`` with a shortcut
+for the usual case of a value already in range.
 """
 
 from __future__ import annotations
@@ -163,3 +164,13 @@ def power(x: ArrayLike, exponent: ArrayLike) -> FloatArray:
     out = np.empty(a.size)
     _power_loop(a, b, out)
     return out.reshape(shape)
+
+
+@njit(cache=True, inline="always")
+def py_mod(x: float, m: float) -> float:
+    """Python's ``x % m`` for ``m > 0`` (numpy's ``remainder``): ``x`` itself when it
+    already lies in ``(0, m)``, which is what the C library's ``fmod`` returns there,
+    without its cost; otherwise the full rule (``fmod``, then the divisor's sign)."""
+    if 0.0 < x < m:
+        return x
+    return x % m

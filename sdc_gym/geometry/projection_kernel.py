@@ -17,6 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 NEWTON_ITERATIONS = 6  # at most; 2-3 from a guess within a metre
 MAX_NEWTON_STEP_M = 50.0
 NEWTON_TOLERANCE_M = 1e-6
@@ -37,7 +39,7 @@ def newton_points(coef: np.ndarray, line: np.ndarray, length: float, x: np.ndarr
     total, scale = line[3], line[4]
     for n in range(x.shape[0]):
         px, py = x[n], y[n]
-        u0 = (s_guess[n] % length) * scale
+        u0 = py_mod(s_guess[n], length) * scale
         u = u0
         for _ in range(NEWTON_ITERATIONS):
             i = min(int(u * inverse), last)
@@ -53,7 +55,7 @@ def newton_points(coef: np.ndarray, line: np.ndarray, length: float, x: np.ndarr
             step = f / fp
             step = min(step, MAX_NEWTON_STEP_M)
             step = max(step, -MAX_NEWTON_STEP_M)
-            u = (u - step) % total
+            u = py_mod(u - step, total)
             if -NEWTON_TOLERANCE_M < step < NEWTON_TOLERANCE_M:
                 break
         i = min(int(u * inverse), last)
@@ -65,7 +67,7 @@ def newton_points(coef: np.ndarray, line: np.ndarray, length: float, x: np.ndarr
         point_y = ((row[1] * t + row[3]) * t + row[5]) * t + row[7]
         d_out[n] = ((px - point_x) * velocity_y - (py - point_y) * velocity_x) / math.hypot(
             velocity_x, velocity_y)
-        moved_out[n] = (((u - u0 + 0.5 * total) % total) - 0.5 * total) / scale
+        moved_out[n] = (py_mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
         s_out[n] = u / scale
         lost += abs(moved_out[n]) > LOCAL_SEARCH_TRUST_M or abs(d_out[n]) > LOCAL_SEARCH_TRUST_M
     return lost

@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from sdc_gym.geometry.exact_math import py_hypot
+from sdc_gym.geometry.exact_math import py_hypot, py_mod
 
 # Rows of the float state.
 (F_S_LAST, F_DISTANCE, F_PROGRESS, F_NEXT_LAP_MARK, F_LAST_MARK_TIME, F_MAX_SPEED,
@@ -129,7 +129,7 @@ def record_batch(rules: np.ndarray, bands: np.ndarray, fs: np.ndarray, ints: np.
             vx2, vy2, ax2, ay2, l2 = vx, vy, ax, ay, step_len
             # Running sums, lap marks.
             distance += step_len
-            ds = (s[e, i] - s_last + half) % loop - half
+            ds = py_mod(s[e, i] - s_last + half, loop) - half
             s_last = s[e, i]
             progress += ds
             cum_progress[i + 1] = progress

@@ -19,6 +19,7 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.generator_kernel import generator_pointers
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic import decisions, placement
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
@@ -76,10 +77,13 @@ class TrafficBatch:
         self.ego_half_length = 0.5 * config.ego_length
         self.decision_constants = self._decision_constants()
         self.placement_constants = self._placement_constants()
+        self.respawn_draws = placement.respawn_draws(self)
         cdf = self.type_p.cumsum()
         self.type_cdf = cdf / cdf[-1]
         self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
+        # Each env's generator as the kernels draw from it (sdc_gym.generator_kernel).
+        self.rng_pointers = np.zeros((envs, 4), dtype=np.uint64)
         self._all = np.ones(envs, dtype=bool)
         self._scratch_for(config.car_count)
 
@@ -134,7 +138,6 @@ class TrafficBatch:
         self.scratch_ratio = np.zeros((self.envs, cars + 1))
         self.scratch_candidates = np.full((self.envs, self.config.respawn_per_decision), -1,
                                           dtype=np.int64)
-        self.scratch_rogue = np.zeros((self.envs, 2 + self.lanes, cars))
 
     # ------------------------------------------------------------------ helpers
     def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
@@ -157,7 +160,7 @@ class TrafficBatch:
         if st.cars != self.config.car_count:
             self.state = st = TrafficState(self.envs, self.config.car_count,
                                            self.config.lane_change_duration)
-        self.rngs[env] = rng
+        self._use_generator(env, rng)
         reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
         self._settle_pose(env)
 
@@ -184,10 +187,15 @@ class TrafficBatch:
                 raise ValueError(f"a batch of {self.envs} envs has {self.state.cars} cars "
                                  f"per env; got {n}")
             self.state = TrafficState(1, n, self.config.lane_change_duration)
-        self.rngs[env] = rng
+        self._use_generator(env, rng)
         reset_row_to(self, self.state, env, rng, ego_s, ego_d, ego_speed, s, lane, speed,
                      desired, types)
         self._settle_pose(env)
+
+    def _use_generator(self, env: int, rng: np.random.Generator) -> None:
+        if self.rngs[env] is not rng:
+            self.rngs[env] = rng
+            self.rng_pointers[env] = generator_pointers(rng)
 
     def _settle_pose(self, env: int) -> None:
         """Env ``env``'s curvature and pose after its placement."""
@@ -221,7 +229,7 @@ class TrafficBatch:
         envs, cars = st.envs, st.cars
         shape = (envs, frames, cars)
         out = tuple(np.empty(shape) for _ in range(4))
-        if len(self.scratch_ratio) != envs or self.scratch_rogue.shape[2] != cars:
+        if self.scratch_ratio.shape != (envs, cars + 1):
             self._scratch_for(cars)
         period = self.config.decision_period
         step0 = st.step.copy()

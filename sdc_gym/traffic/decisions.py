@@ -32,6 +32,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym import generator_kernel as draw
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.traffic.kinematics import (
     A_MAX,
     ACC,
@@ -106,7 +108,7 @@ def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarr
             continue
         before = end[e] - 1  # the ego's latest state before the decision
         if before >= 0:
-            ef[EGO_S, e] = ego_s[e, before] % loop
+            ef[EGO_S, e] = py_mod(ego_s[e, before], loop)
             ef[EGO_D, e] = ego_d[e, before]
             ef[EGO_SPEED, e] = ego_speed[e, before]
         now = step0[e] + end[e]
@@ -149,7 +151,7 @@ def _relative(cf: np.ndarray, ef: np.ndarray, e: int, loop: float, half: float,
     farthest = 0.0
     for j in range(cars + 1):
         s = cf[S, e, j] if j < cars else ego_s
-        value = ((s - ego_s + half) % loop) - half
+        value = py_mod(s - ego_s + half, loop) - half
         out[j] = value
         if abs(value) > farthest:
             farthest = abs(value)
@@ -193,10 +195,11 @@ def _stopping_gap(v_back: float, v_front: float, delay: float, max_braking: floa
 @njit(cache=True)
 def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
                      rows: np.ndarray, constants: np.ndarray, kappa_grid: np.ndarray,
-                     kappa_table: np.ndarray, free: np.ndarray, rogue: np.ndarray) -> None:
+                     kappa_table: np.ndarray, free: np.ndarray, rngs: np.ndarray) -> None:
     """Steps 3-6 for the envs with ``rows``: ``free`` is ``(envs, objects)`` the IDM
-    free-road power ``(v / v0) ** delta``; ``rogue`` ``(envs, 2 + lanes, cars)`` the
-    rogue events' uniform draws (read when rogue mode is on)."""
+    free-road power ``(v / v0) ** delta``; ``rngs`` each env's generator (its
+    :func:`~sdc_gym.generator_kernel.generator_pointers`), which the rogue events draw
+    from (``Generator.random((2 + lanes, cars))``), when rogue mode is on."""
     envs, cars = cf.shape[1], cf.shape[2]
     objects = cars + 1
     lanes = int(constants[C_LANES])
@@ -214,7 +217,7 @@ def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndar
     rel = np.empty(objects)
     occupies = np.zeros((lanes, objects), dtype=np.bool_)
     order = np.empty(objects, dtype=np.int64)
-    position = np.empty(objects, dtype=np.int64)
+    position = np.empty(objects + 4, dtype=np.int64)
     first_from = np.empty((lanes, objects + 1), dtype=np.int64)
     last_upto = np.empty((lanes, objects + 1), dtype=np.int64)
     ahead = np.empty((lanes, cars), dtype=np.int64)
@@ -237,6 +240,7 @@ def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndar
     want = np.empty(cars, dtype=np.int64)
     start = np.empty(cars, dtype=np.bool_)
     first = np.empty(lanes + 1, dtype=np.int64)
+    u = np.empty((2 + lanes, cars))
     for e in range(envs):
         if not rows[e]:
             continue
@@ -337,7 +341,10 @@ def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndar
                     _begin_change(ci, cf, e, c, want[c], now, int(constants[C_LC_STEPS]),
                                   constants[C_LC_DURATION])
         if rogue_p > 0.0:
-            _rogue(cf, ci, ei, e, now, constants, rogue[e], acc, ds_ahead, ds_behind,
+            for row in range(2 + lanes):
+                for c in range(cars):
+                    u[row, c] = draw.random(rngs[e])
+            _rogue(cf, ci, ei, e, now, constants, u, acc, ds_ahead, ds_behind,
                    lead_gap, follow_gap, lead_v, v_all, behind)
         for c in range(cars):
             cf[ACC, e, c] = acc[c]
@@ -415,10 +422,6 @@ def decide(batch: TrafficBatch, rows: NDArray[np.bool_], end: IntArray, step0: I
                 # Cars moved: their speed ratios anew (the same operations).
                 ratio[env, :-1] = np.maximum(st.speed[env], 0.0) / st.desired[env]
     free = ratio ** batch.config.idm.delta
-    rogue = batch.scratch_rogue
-    if batch.rogue_p > 0.0:
-        shape = (2 + batch.lanes, st.cars)
-        for env in np.flatnonzero(rows).tolist():
-            rogue[env] = batch.rngs[env].random(shape)
     finish_decisions(cf, ci, ei, ef, rows, batch.decision_constants,
-                     batch.geometry.kappa_grid, batch.geometry.kappa_table, free, rogue)
+                     batch.geometry.kappa_grid, batch.geometry.kappa_table, free,
+                     batch.rng_pointers)

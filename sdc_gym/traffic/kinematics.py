@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.state import TrafficState
@@ -58,7 +59,8 @@ EGO_S, EGO_D, EGO_SPEED = (_EF[n] for n in ("ego_s", "ego_d", "ego_speed"))
 @njit(cache=True)
 def interp(x: float, grid: np.ndarray, values: np.ndarray) -> float:
     """``np.interp(x, grid, values)`` for one ``x`` (numpy's own special cases and
-    arithmetic: the bisection, ``slope * (x - grid[j]) + values[j]``)."""
+    arithmetic, ``slope * (x - grid[j]) + values[j]`` with ``j`` the last grid point at or
+    below ``x``, which a uniform grid's spacing locates at once)."""
     n = grid.shape[0]
     if math.isnan(x):
         return x
@@ -66,14 +68,12 @@ def interp(x: float, grid: np.ndarray, values: np.ndarray) -> float:
         return values[n - 1]
     if x < grid[0]:
         return values[0]
-    low, high = 0, n
-    while low < high:
-        middle = low + ((high - low) >> 1)
-        if x >= grid[middle]:
-            low = middle + 1
-        else:
-            high = middle
-    j = low - 1
+    j = int((x - grid[0]) / (grid[1] - grid[0]))
+    j = min(max(j, 0), n - 1)
+    while j > 0 and grid[j] > x:
+        j -= 1
+    while j < n - 1 and grid[j + 1] <= x:
+        j += 1
     if j == n - 1 or grid[j] == x:
         return values[j]
     slope = (values[j + 1] - values[j]) / (grid[j + 1] - grid[j])
@@ -167,7 +167,7 @@ def segments(cf: np.ndarray, ci: np.ndarray, rows: np.ndarray, begin: np.ndarray
                 dd_out[e, f, c] = d_dot
             if keep_end:
                 last = end[e] - 1
-                cf[S, e, c] = s_out[e, last, c] % loop
+                cf[S, e, c] = py_mod(s_out[e, last, c], loop)
                 cf[SPEED, e, c] = v_out[e, last, c]
                 cf[D, e, c] = d_out[e, last, c]
 
@@ -192,19 +192,19 @@ def poses(table: np.ndarray, loop: float, grid_scale: float, grid_count: int,
     direction whose angle is the heading (for a car below 1 m/s its lane's tangent
     direction, so a (near) stopped car keeps pointing along its lane)."""
     for n in range(s.shape[0]):
-        sw = s[n] % loop
+        sw = py_mod(s[n], loop)
         u = sw * grid_scale
         cell = math.floor(u)
         if clamp_cell and cell > grid_count - 1:  # s == L after rounding
             cell = grid_count - 1
         f = u - cell
-        i = int(cell)
-        px = table[6, i] * f + table[0, i]
-        py = table[7, i] * f + table[1, i]
-        tx = table[8, i] * f + table[2, i]
-        ty = table[9, i] * f + table[3, i]
-        nx = table[10, i] * f + table[4, i]  # the right normal (ty, -tx)
-        ny = table[11, i] * f + table[5, i]
+        row = table[int(cell)]
+        px = row[6] * f + row[0]
+        py = row[7] * f + row[1]
+        tx = row[8] * f + row[2]
+        ty = row[9] * f + row[3]
+        nx = row[10] * f + row[4]  # the right normal (ty, -tx)
+        ny = row[11] * f + row[5]
         dn, vn, ddn = d[n], v[n], d_dot[n]
         s_out[n] = sw
         x_out[n] = dn * nx + px
@@ -234,15 +234,15 @@ class TrafficGeometry:
         point, tangent = self.reference.frame(grid[:-1])
         table = np.vstack([np.hstack([point, tangent]), np.hstack([point, tangent])[:1]])
         geo, geo_step = table[:-1], np.diff(table, axis=0)
-        # Component-first: rows x, y, tx, ty, ty, -tx (the right normal's components
-        # follow the tangent), then the steps to the next grid point. One extra column,
-        # the value at the end of the last cell, lets s == L (after rounding) skip the
-        # clamp of the cell index.
-        values = np.column_stack([geo, geo[:, 3], -geo[:, 2]]).T
-        steps = np.column_stack([geo_step, geo_step[:, 3], -geo_step[:, 2]]).T
-        end = values[:, -1] + 1.0 * steps[:, -1]
+        # One row per grid point: x, y, tx, ty, ty, -tx (the right normal's components
+        # follow the tangent), then the steps to the next grid point. One extra row, the
+        # value at the end of the last cell, lets s == L (after rounding) skip the clamp
+        # of the cell index.
+        values = np.column_stack([geo, geo[:, 3], -geo[:, 2]])
+        steps = np.column_stack([geo_step, geo_step[:, 3], -geo_step[:, 2]])
+        end = values[-1] + 1.0 * steps[-1]
         self.table = np.ascontiguousarray(np.vstack([
-            np.column_stack([values, end]), np.column_stack([steps, np.zeros(6)])]))
+            np.column_stack([values, steps]), np.append(end, np.zeros(6))[None]]))
         self.clamp_cell = self.loop * self.grid_scale > count
         kappa = self.reference.curvature(grid[:-1])
         self.kappa_grid = np.ascontiguousarray(grid)

@@ -28,13 +28,15 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 
 @njit(cache=True, inline="always")
 def _gap(rel: np.ndarray, order: np.ndarray, p: int, rel_i: float, fold: bool,
          half: float, loop: float) -> float:
     delta = rel[order[p]] - rel_i
     if fold:
-        delta = ((delta + half) % loop) - half
+        delta = py_mod(delta + half, loop) - half
     return delta
 
 
@@ -52,6 +54,23 @@ def _first_above(rel: np.ndarray, order: np.ndarray, low: int, high: int, rel_i:
 
 
 @njit(cache=True)
+def _stable_order(values: np.ndarray, order: np.ndarray) -> None:
+    """``order`` = the stable argsort of ``values`` (insertion sort for the usual dozen
+    objects, numpy's mergesort for many)."""
+    n = values.shape[0]
+    if n > 64:
+        order[:] = np.argsort(values, kind="mergesort")
+        return
+    for i in range(n):
+        value = values[i]
+        j = i
+        while j > 0 and values[order[j - 1]] > value:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = i
+
+
+@njit(cache=True)
 def nearest_objects(rel: np.ndarray, occupies: np.ndarray, fold: bool, loop: float,
                     order: np.ndarray, position: np.ndarray, first_from: np.ndarray,
                     last_upto: np.ndarray, ahead: np.ndarray, ahead_gap: np.ndarray,
@@ -63,8 +82,8 @@ def nearest_objects(rel: np.ndarray, occupies: np.ndarray, fold: bool, loop: flo
         occupies: ``(lanes, objects)`` which lanes each object occupies.
         fold: whether gaps are folded once more.
         loop: the loop length (m).
-        order, position: ``(objects,)`` work arrays; ``first_from``, ``last_upto``:
-            ``(lanes, objects + 1)`` work arrays.
+        order: ``(objects,)`` and ``position`` ``(objects + 4,)`` work arrays;
+            ``first_from``, ``last_upto``: ``(lanes, objects + 1)`` work arrays.
         ahead, ahead_gap, behind, behind_gap: ``(lanes, cars)`` outputs: the object
             index (0 where there is none) and the gap in s (``inf`` where none; the gap
             behind is the negated difference, ``>= 0``).
@@ -73,7 +92,7 @@ def nearest_objects(rel: np.ndarray, occupies: np.ndarray, fold: bool, loop: flo
     cars = objects - 1
     lanes = occupies.shape[0]
     half = 0.5 * loop
-    order[:] = np.argsort(rel, kind="mergesort")
+    _stable_order(rel, order)
     for p in range(objects):
         position[order[p]] = p
     # first_from[lane, p]: first position >= p occupying the lane (objects: none);
@@ -85,7 +104,7 @@ def nearest_objects(rel: np.ndarray, occupies: np.ndarray, fold: bool, loop: flo
         last_upto[lane, 0] = -1
         for p in range(objects):
             last_upto[lane, p + 1] = p if occupies[lane, order[p]] else last_upto[lane, p]
-    bounds = np.empty(4, dtype=np.int64)
+    bounds = position[objects:]  # the runs' bounds (the caller's room after the positions)
     for i in range(cars):
         rel_i = rel[i]
         me = position[i]
@@ -168,7 +187,7 @@ def nearest_objects_by_comparison(rel: np.ndarray, occupies: np.ndarray, fold: b
                     continue
                 delta = rel[j] - rel[i]
                 if fold:
-                    delta = ((delta + half) % loop) - half
+                    delta = py_mod(delta + half, loop) - half
                 if delta > 0.0 and delta < best_gap:
                     best_gap, best = delta, j
                 if j != i and -delta >= 0.0 and -delta + 0.0 < best_back:

@@ -17,6 +17,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym import generator_kernel as draw
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.traffic.config import MPH
 from sdc_gym.traffic.idm import max_speed_for_gap
 from sdc_gym.traffic.kinematics import (
@@ -38,8 +40,11 @@ from sdc_gym.traffic.kinematics import (
     ORIGIN,
     PENDING,
     PHASE,
+    RESPAWN_BLOCKED_UNTIL,
     RESPAWN_WAIT,
+    SPAWN_COUNT,
     SPEED,
+    STEP,
     TARGET_LANE,
     TSAB,
     TYPE_INDEX,
@@ -76,6 +81,7 @@ _TYPE_LENGTH = TYPE_LENGTHS.copy()
 _TYPE_WIDTH = TYPE_WIDTHS.copy()
 _TYPE_ACCEL = TYPE_COMFORT_ACCEL.copy()
 _TYPE_DECEL = TYPE_COMFORT_DECEL.copy()
+STEP_ROW, RESPAWN_BLOCKED_ROW = STEP, RESPAWN_BLOCKED_UNTIL
 
 
 def new_car(batch: TrafficBatch, st: TrafficState, r: int, i: int, type_index: int,
@@ -145,56 +151,75 @@ def choice(rng: np.random.Generator, cdf: FloatArray) -> int:
     return int(cdf.searchsorted(rng.random(), side="right"))
 
 
-def place(batch: TrafficBatch, st: TrafficState, r: int, i: int,
-          rng: np.random.Generator, offsets: FloatArray) -> bool:
-    """Draw a type, lanes and desired speeds for car ``i``; place it if a spot fits
-    (:func:`find_spot`: the first candidate, ego s + offset, that satisfies the respawn
-    rule)."""
-    cfg = batch.config
-    type_index = choice(rng, batch.type_cdf)
-    lanes = rng.integers(0, batch.lanes, size=len(offsets))
-    u = rng.random(len(offsets))
-    lo_a, hi_a = cfg.speed_ahead_mph
-    lo_b, hi_b = cfg.speed_behind_mph
-    desired = MPH * np.where(offsets > 0, lo_a + u * (hi_a - lo_a), lo_b + u * (hi_b - lo_b))
-    k, speed = find_spot(st.car_floats, st.car_ints, st.env_floats, batch.placement_constants,
-                         batch.geometry.kappa_grid, batch.geometry.kappa_table, r, i,
-                         type_index, offsets, lanes, desired)
-    if k < 0:
-        return False
-    s = (st.ego_s[r] + offsets[k]) % batch.loop
-    write_car(st.car_floats, st.car_ints, st.step, batch.placement_constants, r, i,
-              type_index, s, int(lanes[k]), speed, float(desired[k]),
-              rng.uniform(*cfg.wander_period), rng.uniform(0.0, 2.0 * np.pi))
-    return True
-
-
 def recycle(batch: TrafficBatch, st: TrafficState, r: int, candidates: IntArray,
             rng: np.random.Generator) -> bool:
     """Respawn row ``r``'s ``candidates`` (cars beyond ``spawn_range``, the farthest
-    first; :func:`~sdc_gym.traffic.decisions.begin_decisions` picks them). Returns
-    whether any car moved."""
+    first; :func:`~sdc_gym.traffic.decisions.begin_decisions` picks them), drawing from
+    ``rng``: :func:`recycle_row`. Returns whether any car moved."""
+    return recycle_row(st.car_floats, st.car_ints, st.env_ints, st.env_floats,
+                       batch.placement_constants, batch.geometry.kappa_grid,
+                       batch.geometry.kappa_table, batch.type_cdf, batch.respawn_draws,
+                       batch.lanes, r, candidates, batch.rng_pointers[r])
+
+
+def respawn_draws(batch: TrafficBatch) -> FloatArray:
+    """The bounds of a respawn's draws, as :func:`recycle_row` takes them: the bands
+    ahead and behind (m), the desired speeds ahead and behind (mph), the wander period
+    (s), the chance of the side ahead."""
     cfg = batch.config
-    step = int(st.step[r])
-    moved = False
     (lo_a, hi_a), (lo_b, hi_b) = batch.respawn_bands
-    for i in candidates.tolist():
+    return np.array([lo_a, hi_a, lo_b, hi_b, *cfg.speed_ahead_mph, *cfg.speed_behind_mph,
+                     *cfg.wander_period, cfg.respawn_ahead_probability])
+
+
+@njit(cache=True)
+def recycle_row(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
+                constants: np.ndarray, kappa_grid: np.ndarray, kappa_table: np.ndarray,
+                type_cdf: np.ndarray, bands: np.ndarray, lanes: int, r: int,
+                candidates: np.ndarray, rng: np.ndarray) -> bool:
+    """The respawn rule for row ``r``'s candidates, in order, each drawing from the row's
+    generator (``rng``: its :func:`~sdc_gym.generator_kernel.generator_pointers`)
+    exactly as the rule's definition does with the generator's methods: the side's coin,
+    24 spots per side, the type, lanes and desired speeds of the candidate spots, and the
+    wander of a placed car. A car that finds no spot stays and retries later, and the row
+    pauses its respawns."""
+    step = ei[STEP_ROW, r]
+    moved = False
+    offsets = np.empty(2 * SPAWN_CANDIDATES)
+    spot_lanes = np.empty(2 * SPAWN_CANDIDATES, dtype=np.int64)
+    desired = np.empty(2 * SPAWN_CANDIDATES)
+    for i in candidates:
         if i < 0:
             break
         # The original's coin: ahead (slow) or behind (fast), whatever side it left.
-        ahead = rng.random() < cfg.respawn_ahead_probability
-        spots_ahead = rng.uniform(lo_a, hi_a, size=SPAWN_CANDIDATES)
-        spots_behind = -rng.uniform(lo_b, hi_b, size=SPAWN_CANDIDATES)
+        ahead = draw.random(rng) < bands[10]
         # The picked side's spots first, then the other side's (no room on the first).
-        offsets = np.concatenate((spots_ahead, spots_behind) if ahead
-                                 else (spots_behind, spots_ahead))
-        if place(batch, st, r, int(i), rng, offsets):
-            st.spawn_count[r, i] += 1  # the slot keeps its id, as the original's cars
-            moved = True
-        else:  # no room (dense traffic): the car drives on; retry in a while
-            st.respawn_wait[r, i] = step + RESPAWN_RETRY_STEPS
-            st.respawn_blocked_until[r] = step + RESPAWN_PAUSE_STEPS
+        first, second = (0, SPAWN_CANDIDATES) if ahead else (SPAWN_CANDIDATES, 0)
+        for k in range(SPAWN_CANDIDATES):
+            offsets[first + k] = draw.uniform(rng, bands[0], bands[1])
+        for k in range(SPAWN_CANDIDATES):
+            offsets[second + k] = -draw.uniform(rng, bands[2], bands[3])
+        type_index = np.searchsorted(type_cdf, draw.random(rng), side="right")
+        for k in range(offsets.shape[0]):
+            spot_lanes[k] = draw.integers(rng, lanes)
+        span_ahead, span_behind = bands[5] - bands[4], bands[7] - bands[6]
+        for k in range(offsets.shape[0]):
+            u = draw.random(rng)
+            desired[k] = MPH * (bands[4] + u * span_ahead if offsets[k] > 0
+                                else bands[6] + u * span_behind)
+        k, speed = find_spot(cf, ci, ef, constants, kappa_grid, kappa_table, r, i,
+                             type_index, offsets, spot_lanes, desired)
+        if k < 0:  # no room (dense traffic): the car drives on; retry in a while
+            ci[RESPAWN_WAIT, r, i] = step + RESPAWN_RETRY_STEPS
+            ei[RESPAWN_BLOCKED_ROW, r] = step + RESPAWN_PAUSE_STEPS
             break  # the others would not fit either, most likely
+        s = py_mod(ef[EGO_S, r] + offsets[k], constants[K_LOOP])
+        period = draw.uniform(rng, bands[8], bands[9])
+        phase = draw.uniform(rng, 0.0, 2.0 * np.pi)
+        write_car(cf, ci, ei[STEP_ROW], constants, r, i, type_index, s, spot_lanes[k], speed,
+                  desired[k], period, phase)
+        ci[SPAWN_COUNT, r, i] += 1  # the slot keeps its id, as the original's cars
+        moved = True
     return moved
 
 
@@ -241,7 +266,7 @@ def find_spot(cf: np.ndarray, ci: np.ndarray, ef: np.ndarray, constants: np.ndar
     for j in range(count + 1):
         scale_o[j] = 1.0 + interp(s_o[j], kappa_grid, kappa_table) * d_o[j]
     for k in range(offsets.shape[0]):
-        s_c = (ego_s + offsets[k]) % loop
+        s_c = py_mod(ego_s + offsets[k], loop)
         lane = lanes[k]
         scale_c = 1.0 + interp(s_c, kappa_grid, kappa_table) * ((lane + 0.5) * lane_width)
         # The nearest object ahead and behind in the lane (the first of equals; the first
@@ -253,7 +278,7 @@ def find_spot(cf: np.ndarray, ci: np.ndarray, ef: np.ndarray, constants: np.ndar
                 inlane = origin_o[j] == lane or target_o[j] == lane
             else:
                 inlane = low <= lane <= high
-            delta = ((s_o[j] - s_c + half) % loop) - half
+            delta = py_mod(s_o[j] - s_c + half, loop) - half
             value = delta if inlane and delta >= 0.0 else math.inf
             if value < ahead:
                 ahead, li = value, j

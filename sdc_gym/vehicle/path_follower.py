@@ -5,7 +5,7 @@ point after (the original simulator's controller), so the spacing of the points 
 speed; a path that runs out stops the car dead where it stands. A path takes effect
 ``latency`` frames after it is sent; until then the car keeps consuming the old one.
 How a path is taken up and consumed is the original's rule
-(:mod:`sdc_gym.envs.perfect_controller`). The motion of every env's car over a step is
+(:mod:`sdc_gym.vehicle.perfect_controller`). The motion of every env's car over a step is
 one compiled pass (:func:`drive_paths`); the heading is numpy's ``arctan2`` of the step
 to the next point over the whole batch (its SIMD version, as the env was defined with).
 """
@@ -18,7 +18,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
-from sdc_gym.envs.perfect_controller import adopted_start, frames_of_motion
+from sdc_gym.vehicle.perfect_controller import adopted_start, frames_of_motion
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]

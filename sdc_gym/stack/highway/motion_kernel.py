@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 # Columns of a queue row: one row per planned state.
 X, Y, S, D, HEADING, INCREMENT = range(6)
 
@@ -28,7 +30,7 @@ def line_frame(coef: np.ndarray, knot_step: float, inverse_step: float, segments
                ) -> tuple[float, float, float, float, float]:
     """Point, right unit normal and curvature of the reference line at ``s``
     (:meth:`~sdc_gym.geometry.reference_line.ReferenceLine.line_frames` for one s)."""
-    u = (s % length) * param_scale
+    u = py_mod(s, length) * param_scale
     i = int(u * inverse_step)
     if i > segments - 1:
         i = segments - 1
@@ -267,14 +269,14 @@ def _extend(params: np.ndarray, coef: np.ndarray, line: np.ndarray, buffer: np.n
             s = s_pred[j] + (oy * nx - ox * ny) / (1.0 + bend * d)
             buffer[e, write, 0] = x
             buffer[e, write, 1] = y
-            buffer[e, write, 2] = s % length
+            buffer[e, write, 2] = py_mod(s, length)
             buffer[e, write, 3] = d
             buffer[e, write, 4] = heading
             buffer[e, write, 5] = step
             write += 1
         if travelled > 1e-6:
             floats[e, 0] = min(max((s - s_start) / travelled, 0.5), 2.0)
-        s %= length
+        s = py_mod(s, length)
     stop[e] = write
     end_row[e] = buffer[e, write - 1]
     has_end[e] = True

@@ -17,6 +17,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 SOUND, FAULTY, BOUNDARY = 0, 1, 2
 MIN_CURVATURE = 1e-9  # 1/m: a circumcircle flatter than this counts as a straight (inf)
 
@@ -39,7 +41,7 @@ def measure_batch(fusion: np.ndarray, present: np.ndarray, table: np.ndarray,
             if not present[e, k]:
                 continue
             x, y = fusion[e, k, 1], fusion[e, k, 2]
-            s = fusion[e, k, 5] % length
+            s = py_mod(fusion[e, k, 5], length)
             d = fusion[e, k, 6]
             u = s * scale
             i = int(u)  # s < length: at most n, the table's last row
@@ -91,7 +93,7 @@ def select_batch(s: np.ndarray, d: np.ndarray, speed: np.ndarray, ids: np.ndarra
         nearest[:] = 0
         own = ego_lane[e]
         for k in range(count[e]):
-            gap = (s[e, k] + shift) % length - half
+            gap = py_mod(s[e, k] + shift, length) - half
             distance = abs(gap)
             value = d[e, k] * inverse_width
             finite = math.isfinite(value)
@@ -140,7 +142,7 @@ def road_radius(table: np.ndarray, scale: float, length: float, s: float, lane: 
     (``table[lane]``, ``scale`` samples per metre; linear interpolation; ``inf`` where the
     circle is flatter than 1e-9 / m)."""
     row = table[lane]
-    u = (s % length) * scale
+    u = py_mod(s, length) * scale
     i = min(int(u), row.shape[0] - 2)
     low = row[i]
     curvature = low + (u - i) * (row[i + 1] - low)
