@@ -105,6 +105,30 @@ class StepResult:
 
 
 @njit(cache=True)
+def path_lengths(paths: np.ndarray, lengths: np.ndarray, low: np.ndarray, high: np.ndarray,
+                 out: np.ndarray) -> int:
+    """Each path's length without trailing repeats of its last point (at least 1 of a
+    path of repeats) into ``out``; the first env with a point outside ``[low, high]``
+    or not finite (NaN compares false), or -1."""
+    for e in range(paths.shape[0]):
+        count = lengths[e]
+        for k in range(count):
+            x, y = paths[e, k, 0], paths[e, k, 1]
+            if not (low[0] <= x <= high[0] and low[1] <= y <= high[1]):
+                return e
+        out[e] = count
+        if count > 1 and paths[e, count - 2, 0] == paths[e, count - 1, 0] and \
+                paths[e, count - 2, 1] == paths[e, count - 1, 1]:
+            last = -1  # the last point that differs from the last one
+            for k in range(count):
+                if paths[e, k, 0] != paths[e, count - 1, 0] or \
+                        paths[e, k, 1] != paths[e, count - 1, 1]:
+                    last = k
+            out[e] = last + 2 if last >= 0 else 1
+    return -1
+
+
+@njit(cache=True)
 def ego_points(xy: np.ndarray, speed: np.ndarray, s_before: np.ndarray, path: np.ndarray,
                path_start: np.ndarray, path_length: np.ndarray, dt: float,
                points: np.ndarray, guesses: np.ndarray, has_end: np.ndarray) -> None:
@@ -182,8 +206,6 @@ class HighwayWorld:
         low_xy = self.road.waypoints[:, :2].min(axis=0) - ACTION_MARGIN_M
         high_xy = self.road.waypoints[:, :2].max(axis=0) + ACTION_MARGIN_M
         self.action_low, self.action_high = low_xy, high_xy
-        self._low_rows = np.tile(low_xy, (self.path_points, 1))
-        self._high_rows = np.tile(high_xy, (self.path_points, 1))
         self.incident_penalty = {kind: float(value)
                                  for kind, value in cfg["reward_incident"].items()}
         self.progress_scale = cfg["reward_progress"] / (
@@ -246,32 +268,22 @@ class HighwayWorld:
             raise ValueError(f"path has {len(points)} points; at most path_points = "
                              f"{self.path_points} (raise the 'path_points' config key)")
         count = len(points)
-        padded = np.zeros((1, self.path_points, 2))
-        padded[0, :count] = points
-        length = self.check_paths(padded, np.array([count]))
+        lengths = np.array([count])
+        if not points.flags.c_contiguous:
+            points = np.ascontiguousarray(points)
+        length = self.check_paths(points[None], lengths)
         return points[: int(length[0])]
 
     def check_paths(self, paths: FloatArray, lengths: IntArray) -> IntArray:
-        """Check ``(envs, path_points, 2)`` paths (their first ``lengths`` points); the
+        """Check ``(envs, points, 2)`` paths (their first ``lengths`` points); the
         lengths without trailing repeats of the last point (padding: a car parked on its
         last point would stop dead there anyway). A non-finite or out-of-bounds point
         raises ``ValueError`` naming it."""
-        used = np.arange(paths.shape[1])[None, :] < lengths[:, None]
-        # One test covers NaN, inf and out-of-bounds (NaN compares false).
-        inside = (paths >= self._low_rows) & (paths <= self._high_rows)
-        bad = used & ~(inside[..., 0] & inside[..., 1])
-        if np.count_nonzero(bad):
-            env = int(np.nonzero(bad)[0][0])
-            self._raise_bad_point(paths[env, :lengths[env]], env if self.envs > 1 else None)
-        rows = np.arange(len(lengths))
-        last = paths[rows, np.maximum(lengths - 1, 0)]
-        before = paths[rows, np.maximum(lengths - 2, 0)]
-        repeated = (lengths > 1) & (before == last).all(axis=1)
-        if not np.count_nonzero(repeated):
-            return lengths
-        differs = used & (paths != last[:, None, :]).any(axis=2)
-        last_differ = np.where(differs, np.arange(paths.shape[1])[None, :], -1).max(axis=1)
-        return np.where(repeated, np.where(last_differ >= 0, last_differ + 2, 1), lengths)
+        trimmed = np.empty(len(lengths), dtype=np.int64)
+        bad = path_lengths(paths, lengths, self.action_low, self.action_high, trimmed)
+        if bad >= 0:
+            self._raise_bad_point(paths[bad, :lengths[bad]], bad if self.envs > 1 else None)
+        return trimmed
 
     def _raise_bad_point(self, points: FloatArray, env: int | None) -> None:
         where = "" if env is None else f"env {env}: "

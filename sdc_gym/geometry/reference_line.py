@@ -372,9 +372,13 @@ class ReferenceLine:
         ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``), in one
         compiled pass (:func:`~sdc_gym.geometry.projection_kernel.newton_points`).
         """
-        shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(s0))
-        flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
-                for a in (x, y, s0)]
+        shape = np.shape(x)
+        if np.shape(y) == shape == np.shape(s0):
+            flat = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, s0)]
+        else:
+            shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(s0))
+            flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
+                    for a in (x, y, s0)]
         out = np.empty((3, flat[0].size))
         lost = newton_points(self._coef_xy, self._projection_line, self.length, *flat, *out)
         result = out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)

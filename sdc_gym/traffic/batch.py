@@ -17,20 +17,88 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.generator_kernel import generator_pointers
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic import decisions, placement
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
-from sdc_gym.traffic.kinematics import TrafficGeometry
+from sdc_gym.traffic.kinematics import (
+    EGO_D,
+    EGO_S,
+    EGO_SPEED,
+    HEADING,
+    SPEED,
+    STEP,
+    VX,
+    VY,
+    D,
+    S,
+    TrafficGeometry,
+    X,
+    Y,
+)
 from sdc_gym.traffic.placement import reset_row, reset_row_to
 from sdc_gym.traffic.state import TrafficState
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+
+@njit(cache=True)
+def plan_rounds(step: np.ndarray, frames: int, period: int, rows: np.ndarray,
+                begin: np.ndarray, end: np.ndarray) -> int:
+    """Each env's decisions in a window of ``frames`` frames from its ``step``: on the
+    window's frames ``k1, k1 + period, ...`` (``k1`` the first frame at a multiple of the
+    period). Round ``j`` holds every env's ``j``-th: ``rows[j]`` which envs have one,
+    ``end[j]`` its frame, ``begin[j]`` the previous one's (or 0); row ``rounds`` the last
+    segments (``begin`` to ``frames``). Returns the number of rounds."""
+    envs = step.shape[0]
+    rounds = 0
+    for e in range(envs):
+        first = (period - step[e] % period) % period
+        count = 0 if first >= frames else (frames - 1 - first) // period + 1
+        rounds = max(rounds, count)
+    for e in range(envs):
+        frame = (period - step[e] % period) % period
+        start = 0
+        for j in range(rounds):
+            rows[j, e] = frame < frames
+            if rows[j, e]:
+                begin[j, e], end[j, e] = start, frame
+                start = frame
+                frame += period
+            else:
+                begin[j, e] = end[j, e] = start
+        rows[rounds, e] = True
+        begin[rounds, e], end[rounds, e] = start, frames
+    return rounds
+
+
+@njit(cache=True)
+def close_window(cf: np.ndarray, ei: np.ndarray, ef: np.ndarray, step0: np.ndarray,
+                 frames: int, ego_s: np.ndarray, ego_d: np.ndarray, ego_speed: np.ndarray,
+                 loop: float,
+                 s: np.ndarray, d: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray,
+                 heading: np.ndarray, vx: np.ndarray, vy: np.ndarray) -> None:
+    """The window's last frame becomes the state: every car's pose, each env's step and
+    the ego's latest s (wrapped), d and speed."""
+    last = frames - 1
+    for e in range(cf.shape[1]):
+        ei[STEP, e] = step0[e] + frames
+        ef[EGO_S, e] = py_mod(ego_s[e, last], loop)
+        ef[EGO_D, e] = ego_d[e, last]
+        ef[EGO_SPEED, e] = ego_speed[e, last]
+        for c in range(cf.shape[2]):
+            cf[S, e, c], cf[D, e, c], cf[SPEED, e, c] = s[e, last, c], d[e, last, c], \
+                v[e, last, c]
+            cf[X, e, c], cf[Y, e, c] = x[e, last, c], y[e, last, c]
+            cf[HEADING, e, c] = heading[e, last, c]
+            cf[VX, e, c], cf[VY, e, c] = vx[e, last, c], vy[e, last, c]
 
 
 class TrafficBatch:
@@ -85,6 +153,8 @@ class TrafficBatch:
         # Each env's generator as the kernels draw from it (sdc_gym.generator_kernel).
         self.rng_pointers = np.zeros((envs, 4), dtype=np.uint64)
         self._all = np.ones(envs, dtype=bool)
+        self._ready = False
+        self._round_plans: dict[int, tuple[NDArray, ...]] = {}
         self._scratch_for(config.car_count)
 
     def _decision_constants(self) -> FloatArray:
@@ -192,6 +262,22 @@ class TrafficBatch:
                      desired, types)
         self._settle_pose(env)
 
+    def _rounds(self, frames: int) -> tuple[int, NDArray[np.bool_], IntArray, IntArray]:
+        """The decision rounds of a window of ``frames`` frames: how many, and per round
+        which envs decide, at which frame, and where their segment before it begins (row
+        ``rounds``: every env's last segment, to the window's end)."""
+        plan = self._round_plans.get(frames)
+        if plan is None:
+            most = frames // self.config.decision_period + 2
+            plan = self._round_plans[frames] = (
+                np.zeros((most, self.envs), dtype=np.bool_),
+                np.zeros((most, self.envs), dtype=np.int64),
+                np.zeros((most, self.envs), dtype=np.int64))
+        rows, begin, end = plan
+        count = plan_rounds(self.state.step, frames, self.config.decision_period, rows, begin,
+                            end)
+        return count, rows, begin, end
+
     def _use_generator(self, env: int, rng: np.random.Generator) -> None:
         if self.rngs[env] is not rng:
             self.rngs[env] = rng
@@ -221,8 +307,10 @@ class TrafficBatch:
         Returns:
             :class:`TrafficSamples` of ``(envs, frames, cars)`` arrays.
         """
-        if any(rng is None for rng in self.rngs):
-            raise RuntimeError("call reset() before advance()")
+        if not self._ready:
+            if any(rng is None for rng in self.rngs):
+                raise RuntimeError("call reset() before advance()")
+            self._ready = True
         if frames < 1:
             raise ValueError(f"frames must be >= 1; got {frames}")
         st = self.state
@@ -231,32 +319,21 @@ class TrafficBatch:
         out = tuple(np.empty(shape) for _ in range(4))
         if self.scratch_ratio.shape != (envs, cars + 1):
             self._scratch_for(cars)
-        period = self.config.decision_period
         step0 = st.step.copy()
-        # Each env's decisions fall on frames k1, k1 + period, ... of the window. Round j
-        # takes every env's j-th decision at once: first the segment since the previous
-        # one (from each env's own start), then the decisions.
-        decision = (period - step0 % period) % period  # frame of each env's next decision
-        segment_start = np.zeros(envs, dtype=np.int64)
         if cars:
-            while True:
-                rows = decision < frames
-                if not rows.any():
-                    break
-                self.geometry.segments(st, rows, segment_start, decision, step0, out,
+            # Round j takes every env's j-th decision of the window at once: first the
+            # segment since its previous one, then the decisions.
+            rounds, rows, begin, end = self._rounds(frames)
+            for j in range(rounds):
+                self.geometry.segments(st, rows[j], begin[j], end[j], step0, out,
                                        keep_end=True)
-                decide(self, rows, decision, step0, ego_s, ego_d, ego_speed)
-                segment_start = np.where(rows, decision, segment_start)
-                decision = np.where(rows, decision + period, decision)
+                decide(self, rows[j], end[j], step0, ego_s, ego_d, ego_speed)
             # The last segment of every env, from its last decision to the window's end.
-            self.geometry.segments(st, self._all, segment_start,
-                                   np.full(envs, frames, dtype=np.int64), step0, out,
+            self.geometry.segments(st, self._all, begin[rounds], end[rounds], step0, out,
                                    keep_end=False)
-        st.step[:] = step0 + frames
-        st.ego_s[:] = ego_s[:, -1] % self.loop
-        st.ego_d[:] = ego_d[:, -1]
-        st.ego_speed[:] = ego_speed[:, -1]
         samples = self.geometry.pose(*out)
-        self.geometry.update_pose(st, samples)
+        close_window(st.car_floats, st.env_ints, st.env_floats, step0, frames, ego_s, ego_d,
+                     ego_speed, self.loop, samples.s, samples.d, samples.speed, samples.x,
+                     samples.y, samples.heading, samples.vx, samples.vy)
         return samples
 

@@ -265,15 +265,15 @@ class TrafficGeometry:
 
     def pose(self, s: FloatArray, d: FloatArray, v: FloatArray,
              d_dot: FloatArray) -> TrafficSamples:
-        """World pose of Frenet states (any shape)."""
+        """World pose of Frenet states (C-contiguous arrays of any one shape)."""
         shape = s.shape
-        flat = [np.ascontiguousarray(a).reshape(-1) for a in (s, d, v, d_dot)]
-        outputs = np.empty((7, flat[0].size))
+        outputs = np.empty((7, *shape))
         poses(self.table, self.loop, self.grid_scale, self.grid_count, self.clamp_cell,
-              *flat, *outputs)
-        heading = np.arctan2(outputs[6], outputs[5]).reshape(shape)
-        wrapped, x, y, vx, vy = (row.reshape(shape) for row in outputs[:5])
-        return TrafficSamples._make(wrapped, d, v, x, y, heading, vx, vy)
+              s.reshape(-1), d.reshape(-1), v.reshape(-1), d_dot.reshape(-1),
+              *(row.reshape(-1) for row in outputs))
+        heading = np.arctan2(outputs[6], outputs[5])
+        return TrafficSamples._make(outputs[0], d, v, outputs[1], outputs[2], heading,
+                                    outputs[3], outputs[4])
 
     def samples_now(self, state: TrafficState, env: int | None = None) -> TrafficSamples:
         """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``;

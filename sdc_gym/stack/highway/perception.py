@@ -47,6 +47,7 @@ from sdc_gym.stack.highway.perception_kernel import (
     BOUNDARY,
     FAULTY,
     SOUND,
+    ego_frenet,
     measure_batch,
     road_radius,
     select_batch,
@@ -202,6 +203,7 @@ class Perception:
         self._measurement_cov = np.diag([position_var, position_var, velocity_var,
                                          velocity_var])
         self._transition_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._cycle_buffers: dict[tuple[int, int], Any] = {}
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -255,6 +257,20 @@ class Perception:
         cross = np.abs(ab[:, 0] * ca[:, 1] - ab[:, 1] * ca[:, 0])
         sides = np.hypot(*ab.T) * np.hypot(*bc.T) * np.hypot(*ca.T)
         return 2.0 * cross / sides
+
+    def _buffers(self, envs: int, cars: int) -> tuple[SensedBatch, tuple[NDArray, ...]]:
+        """The arrays a cycle of ``envs`` envs of ``cars`` rows fills (kept: a cycle's
+        results are read before the next cycle)."""
+        key = (envs, cars)
+        buffers = self._cycle_buffers.get(key)
+        if buffers is None:
+            shape = (envs, cars)
+            scratch = (np.zeros(shape), np.zeros(shape), np.zeros(shape),
+                       np.zeros(shape, dtype=np.int64), *(np.zeros((envs, cars, 2))
+                                                          for _ in range(3)))
+            buffers = self._cycle_buffers[key] = (SensedBatch(envs, cars, self._lanes),
+                                                  scratch)
+        return buffers
 
     def _transition(self, dt: float) -> tuple[FloatArray, FloatArray]:
         """State transition F and process noise Q of the constant-velocity model."""
@@ -384,31 +400,24 @@ def sense_batch(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
     p = first.params
     envs, cars = fusion.shape[:2]
     lanes, length = first._lanes, first._length
-    rows = first._geometry_xy_rows
-    fusion64 = np.ascontiguousarray(fusion, dtype=np.float64)
-    out = SensedBatch(envs, cars, lanes)
-    shape = (envs, cars)
-    s, d, nx, ny, bend = out.s, out.d, np.zeros(shape), np.zeros(shape), np.zeros(shape)
-    fault = np.zeros(shape, dtype=np.int64)
-    xy, velocity, miss = (np.zeros((envs, cars, 2)) for _ in range(3))
-    measure_batch(fusion64, np.ascontiguousarray(present), rows, length,
-                  first._geometry_scale, p.fault_tolerance, s, d, nx, ny, bend, fault,
-                  out.count, xy, velocity, miss, out.ids)
+    out, scratch = first._buffers(envs, cars)
+    s, d = out.s, out.d
+    nx, ny, bend, fault, xy, velocity, miss = scratch
+    measure_batch(np.ascontiguousarray(fusion, dtype=np.float64), np.ascontiguousarray(present),
+                  first._geometry_xy_rows, length, first._geometry_scale, p.fault_tolerance,
+                  s, d, nx, ny, bend, fault, out.count, xy, velocity, miss, out.ids)
     if (fault != SOUND).any():
         _repair_faults(first, fault, out.count, miss, xy, s, d, nx, ny, bend)
     # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
     projected = (velocity[..., 0] + 1j * velocity[..., 1]) * (nx + 1j * ny).conj()
     out.speed[:], out.d_rate[:] = projected.imag, projected.real
-    ego64 = ego.astype(np.float64)
-    out.ego_s[:] = ego64[:, 2] % length
-    out.ego_d[:] = ego64[:, 3]
-    out.ego_speed[:] = ego64[:, 5]
-    out.ego_lane[:] = np.minimum(np.maximum(np.floor(out.ego_d * first._inverse_width), 0),
-                                 lanes - 1)
+    ego_frenet(np.ascontiguousarray(ego, dtype=np.float64), length, first._inverse_width, lanes,
+               out.ego_s, out.ego_d, out.ego_speed, out.ego_lane)
     select_batch(s, d, out.speed, out.ids, out.count, out.ego_s, out.ego_d, out.ego_lane,
                  length, lanes, first._inverse_width, p.ghosting, p.ghost_lateral,
                  p.ghost_ahead, p.ghost_behind, p.sensing_range, out.views, out.car_lane,
                  out.car_gap)
+    out.tracked.clear()
     if p.tracking:
         for env, perception in enumerate(perceptions):
             _tracked_views(perception, out, env, float(times[env]), bend)

@@ -173,3 +173,16 @@ def summarize_batch(views: np.ndarray, ego_s: np.ndarray, ego_lane: np.ndarray, 
                     preferred[e] = lane
                     break
         radius[e] = road_radius(table, scale, length, ego_s[e], own)
+
+
+@njit(cache=True)
+def ego_frenet(ego: np.ndarray, length: float, inverse_width: float, lanes: int,
+               ego_s: np.ndarray, ego_d: np.ndarray, ego_speed: np.ndarray,
+               ego_lane: np.ndarray) -> None:
+    """Per env the ego's wrapped s, d, speed and lane (``floor(d / width)`` clipped to
+    the road) from its observed ``(x, y, s, d, yaw, speed)``."""
+    for e in range(ego.shape[0]):
+        ego_s[e] = py_mod(ego[e, 2], length)
+        ego_d[e] = ego[e, 3]
+        ego_speed[e] = ego[e, 5]
+        ego_lane[e] = int(min(max(math.floor(ego[e, 3] * inverse_width), 0), lanes - 1))
