@@ -58,7 +58,6 @@ from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
-import yaml
 from rich.console import Console
 
 from agents import external
@@ -76,6 +75,7 @@ from evaluation.runner import run_episodes
 from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
+from sdc_gym.validation.text_files import read_yaml
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
 COMMITTED_POLICY = "dqn:agents/highway/policies/dqn_highway.zip"
@@ -99,12 +99,7 @@ def load_config(path: Path | None) -> tuple[str | None, dict[str, Any]]:
     """A YAML file with optional ``env`` (an env id) and ``config`` (env config overrides)."""
     if path is None:
         return None, {}
-    if not path.is_file():
-        raise SystemExit(f"{path}: no such config file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as error:
-        raise SystemExit(f"{path}: not valid YAML: {error}") from None
+    data = read_yaml(path, "config file", SystemExit) or {}  # UTF-8, YAML 1.2 numbers
     if not isinstance(data, dict) or set(data) - {"env", "config"}:
         raise SystemExit(f"{path}: expected a mapping with keys 'env' and/or 'config'")
     config = data.get("config") or {}

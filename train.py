@@ -43,13 +43,23 @@ import gymnasium as gym
 import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
+from agents import checkpoints as ckpt
 from evaluation.files import atomic_write_text
+from sdc_gym.config import ConfigError
+from sdc_gym.validation.run_config import (
+    ALGORITHMS,
+    EVAL_DEFAULTS,
+    check_hyperparams,
+    check_run_config,
+)
+from sdc_gym.validation.text_files import parse_yaml
+from sdc_gym.validation.text_files import read_yaml as read_yaml_file
 
-ALGORITHMS = ("ppo", "dqn", "sac", "a2c")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every"}
-EVAL_DEFAULTS = {"every": 50_000, "episodes": 4, "seed": 10_000}
 CHECKPOINT_EVERY = 10_000
+DEFAULT_TIMESTEPS = 100_000
+DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
@@ -70,7 +80,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "same interval)")
     parser.add_argument("--eval-every", type=int, default=None,
                         help="env steps between evaluations (0: none)")
-    parser.add_argument("--resume", action="store_true", help="continue the run in --output")
+    parser.add_argument("--resume", action="store_true",
+                        help="continue the run in --output from its newest intact checkpoint")
+    parser.add_argument("--resume-without-buffer", action="store_true",
+                        help="with --resume of DQN or SAC: go on from the newest intact model "
+                             "even if its replay buffer is missing or torn (an empty buffer; "
+                             "without this flag that is refused)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.add_argument("--vectorize", choices=("batch", "subprocess"), default="batch",
                         help="batch: the env's native batch in this process (where it has "
@@ -83,6 +98,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         value = getattr(args, name)
         if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if args.resume_without_buffer and not args.resume:
+        parser.error("--resume-without-buffer goes with --resume")
     return args
 
 
@@ -92,7 +109,7 @@ def parse_override(text: str) -> tuple[list[str], Any]:
     if not sep or not key.strip() or any(not part for part in key.strip().split(".")):
         raise SystemExit(f"--hp {text!r}: expected KEY=VALUE, e.g. learning_rate=3e-4")
     try:
-        value = yaml.safe_load(raw)
+        value = parse_yaml(raw)
     except yaml.YAMLError as error:
         raise SystemExit(f"--hp {text!r}: the value is not valid YAML: {error}") from None
     return key.strip().split("."), value
@@ -117,24 +134,35 @@ def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
     path = HYPERPARAMS_DIR / f"{algo}.yaml"
     if not path.is_file():
         raise SystemExit(f"{path}: no hyperparameter file for --algo {algo}")
-    table = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    return dict(table.get(env_id) or {})
+    table = read_yaml(path)
+    entry = table.get(env_id) or {}
+    if not isinstance(entry, dict):
+        raise SystemExit(f"{path}: the entry for {env_id} must be a mapping of "
+                         f"hyperparameters, got {entry!r}")
+    return dict(entry)
 
 
 def read_yaml(path: Path) -> dict[str, Any]:
-    if not path.is_file():
-        raise SystemExit(f"{path}: no such file")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8")) or {}
-    except yaml.YAMLError as error:
-        raise SystemExit(f"{path}: not valid YAML: {error}") from None
+    """A YAML mapping (UTF-8, YAML 1.2 numbers), or SystemExit saying what is wrong."""
+    data = read_yaml_file(path, "YAML file", SystemExit) or {}
     if not isinstance(data, dict):
-        raise SystemExit(f"{path}: expected a mapping")
+        raise SystemExit(f"{path}: expected a mapping, got {type(data).__name__}")
     return data
 
 
+def first_given(*values: Any) -> Any:
+    """The first value that is not None (0 is a given value, to be validated)."""
+    return next((value for value in values if value is not None), None)
+
+
 def run_config(args: argparse.Namespace) -> dict[str, Any]:
-    """The run's resolved configuration (a resumed run reads it back from its folder)."""
+    """The run's resolved configuration (a resumed run reads it back from its folder).
+
+    Each value comes from the command line, else the run config (``--config``), else the
+    hyperparameter file's entry for the env (``timesteps``, ``n_envs``), else the default;
+    then every value is checked (:mod:`sdc_gym.validation.run_config`) and SystemExit
+    names the key, the value and what is valid.
+    """
     saved = args.output / "config.yaml"
     if args.resume:
         if not saved.is_file():
@@ -143,34 +171,63 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         config.setdefault("checkpoint_every", CHECKPOINT_EVERY)  # runs from before it was kept
         if args.checkpoint_every is not None:
             config["checkpoint_every"] = args.checkpoint_every
+        validate(config, str(saved))
         return config
     if saved.is_file():
         raise SystemExit(f"{args.output} already holds a run; use --resume or another --output")
+    source = str(args.config) if args.config is not None else "train.py"
     data = read_yaml(args.config) if args.config is not None else {}
     unknown = set(data) - RUN_KEYS
     if unknown:
         raise SystemExit(f"{args.config}: unknown keys {sorted(unknown)}; valid: "
                          f"{sorted(RUN_KEYS)}")
-    env_id = args.env or data.get("env", "sdc_gym/HighwayLoopBehavior-v0")
-    algo = args.algo or data.get("algo", "ppo")
+    env_id = first_given(args.env, data.get("env"), DEFAULT_ENV)
+    algo = first_given(args.algo, data.get("algo"), "ppo")
     if algo not in ALGORITHMS:
-        raise SystemExit(f"unknown algo {algo!r}; valid: {list(ALGORITHMS)}")
-    hyper = load_hyperparams(algo, env_id)
-    hyper = apply_overrides(hyper, args.hp)
-    n_envs = args.n_envs or hyper.pop("n_envs", None) or data.get("n_envs") or os.cpu_count()
-    timesteps = args.timesteps or hyper.pop("timesteps", None) or data.get("timesteps",
-                                                                          100_000)
-    hyper.pop("n_envs", None)
-    hyper.pop("timesteps", None)
-    evaluation = {**EVAL_DEFAULTS, **(data.get("eval") or {})}
-    if args.eval_every is not None:
+        raise SystemExit(f"{source}: config key 'algo' must be one of {list(ALGORITHMS)}, "
+                         f"got {algo!r}")
+    if not isinstance(env_id, str):
+        raise SystemExit(f"{source}: config key 'env' must be an env id, got {env_id!r}")
+    hyper = apply_overrides(load_hyperparams(algo, env_id), args.hp)
+    hyper_n_envs, hyper_timesteps = hyper.pop("n_envs", None), hyper.pop("timesteps", None)
+    evaluation = data.get("eval")
+    evaluation = ({**EVAL_DEFAULTS, **evaluation} if isinstance(evaluation, dict)
+                  else EVAL_DEFAULTS if evaluation is None else evaluation)
+    if args.eval_every is not None and isinstance(evaluation, dict):
         evaluation["every"] = args.eval_every
-    return {"env": env_id, "config": dict(data.get("config") or {}), "algo": algo,
-            "seed": args.seed if args.seed is not None else int(data.get("seed", 0)),
-            "timesteps": int(timesteps), "n_envs": int(n_envs), "hyperparams": hyper,
-            "eval": evaluation,
-            "checkpoint_every": int(args.checkpoint_every or data.get("checkpoint_every",
-                                                                     CHECKPOINT_EVERY))}
+    config = {
+        "env": env_id,
+        "config": first_given(data.get("config"), {}),
+        "algo": algo,
+        "seed": first_given(args.seed, data.get("seed"), 0),
+        "timesteps": first_given(args.timesteps, data.get("timesteps"), hyper_timesteps,
+                                 DEFAULT_TIMESTEPS),
+        "n_envs": first_given(args.n_envs, data.get("n_envs"), hyper_n_envs,
+                              os.cpu_count() or 1),
+        "hyperparams": hyper,
+        "eval": evaluation,
+        "checkpoint_every": first_given(args.checkpoint_every, data.get("checkpoint_every"),
+                                        CHECKPOINT_EVERY),
+    }
+    validate(config, source)
+    return config
+
+
+def validate(config: dict[str, Any], source: str) -> None:
+    """Every value of the run config, its hyperparameters against the algorithm, and the
+    env config by making the env once here, before any env process starts (a bad key is
+    one clear error, not a worker's ConnectionResetError)."""
+    try:
+        check_run_config(config, source, registered=lambda env_id: env_id in gym.registry)
+        check_hyperparams(algorithm_class(config["algo"]), config["hyperparams"],
+                          f"{source} (hyperparameters)")
+        env = gym.make(config["env"], config=config["config"])
+        env.close()
+    except (ConfigError, gym.error.Error) as error:
+        raise SystemExit(str(error)) from None
+    except (ValueError, TypeError) as error:  # an env's own check outside ConfigError
+        raise SystemExit(f"{source}: cannot make {config['env']} with config "
+                         f"{config['config']}: {error}") from None
 
 
 def algorithm_class(name: str) -> type:
@@ -229,27 +286,13 @@ def driving_callback() -> Any:
     return DrivingMetricsCallback()
 
 
-def latest_checkpoint(folder: Path) -> Path | None:
-    """The checkpoint with the most timesteps (names end in ``_<steps>_steps.zip``)."""
-    def steps(path: Path) -> int:
-        return int(path.stem.rsplit("_", 2)[-2])
-
-    return max(folder.glob("*_steps.zip"), key=steps, default=None)
-
-
 def main(argv: list[str] | None = None) -> Path:
     import torch
-    from stable_baselines3.common.callbacks import (
-        CallbackList,
-        CheckpointCallback,
-        EvalCallback,
-        ProgressBarCallback,
-    )
+    from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 
     args = parse_args(argv)
     torch.set_num_threads(max(args.torch_threads, 1))
-    config = run_config(args)
-    gym.spec(config["env"])  # a clear error for an unknown id before any process starts
+    config = run_config(args)  # every value checked, the env config too, before any process
     args.output.mkdir(parents=True, exist_ok=True)
     if not args.resume:
         atomic_write_text(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
@@ -258,16 +301,26 @@ def main(argv: list[str] | None = None) -> Path:
                                                    ["train.py", *argv])]) + "\n")
 
     algo = algorithm_class(config["algo"])
-    vec_env = make_vec_env(config, config["n_envs"], config["seed"], args.vectorize)
     checkpoints = args.output / "checkpoints"
-    latest = latest_checkpoint(checkpoints) if args.resume else None
     off_policy = config["algo"] in ("dqn", "sac")
-    if latest is not None:
-        model = algo.load(latest, env=vec_env, tensorboard_log=str(args.output / "tensorboard"))
-        steps = latest.stem.rsplit("_", 2)[-2]
-        buffer = checkpoints / f"{config['algo']}_replay_buffer_{steps}_steps.pkl"
-        if off_policy and buffer.is_file():
-            model.load_replay_buffer(buffer)
+    point = None
+    if args.resume:
+        try:
+            point = ckpt.resume_point(checkpoints, config["algo"], off_policy,
+                                      without_buffer=args.resume_without_buffer)
+        except ValueError as error:
+            raise SystemExit(f"--resume: {error}") from None
+    vec_env = make_vec_env(config, config["n_envs"], config["seed"], args.vectorize)
+    if point is not None:
+        for note in point.notes:
+            print(f"--resume: {note}")
+        print(f"--resume: from {point.model} ({point.steps} steps"
+              + (f", replay buffer {point.replay_buffer.name})" if point.replay_buffer
+                 else ")"))
+        model = algo.load(point.model, env=vec_env,
+                          tensorboard_log=str(args.output / "tensorboard"))
+        if point.replay_buffer is not None:
+            model.load_replay_buffer(point.replay_buffer)
     else:
         hyper = dict(config["hyperparams"])
         policy = hyper.pop("policy", "MultiInputPolicy" if isinstance(
@@ -275,31 +328,27 @@ def main(argv: list[str] | None = None) -> Path:
         model = algo(policy, vec_env, seed=config["seed"], verbose=0,
                      tensorboard_log=str(args.output / "tensorboard"), **hyper)
     every = max(int(config["checkpoint_every"]) // config["n_envs"], 1)
-    callbacks = [CheckpointCallback(every, str(checkpoints), name_prefix=config["algo"],
-                                    save_replay_buffer=off_policy),
+    callbacks = [ckpt.checkpoint_callback(every, checkpoints, config["algo"], off_policy),
                  driving_callback()]
     evaluation = config["eval"]
     if evaluation["every"]:
         # Evaluation runs in this process; SB3 warns that its vec env class differs.
         warnings.filterwarnings("ignore", message="Training and eval env are not of the same")
         eval_env = make_vec_env(config, 1, int(evaluation["seed"]), args.vectorize)
-        callbacks.append(EvalCallback(
-            eval_env, n_eval_episodes=int(evaluation["episodes"]),
+        callbacks.append(ckpt.eval_callback(
+            eval_env, args.output, n_eval_episodes=int(evaluation["episodes"]),
             eval_freq=max(int(evaluation["every"]) // config["n_envs"], 1),
-            best_model_save_path=str(args.output), log_path=str(args.output),
             deterministic=True, verbose=0))
     if not args.no_progress:
         callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps
     if remaining > 0:
         model.learn(remaining, callback=CallbackList(callbacks),
-                    reset_num_timesteps=latest is None, tb_log_name=config["algo"])
+                    reset_num_timesteps=point is None, tb_log_name=config["algo"])
     final = args.output / "model.zip"
-    temporary = args.output / "model.tmp.zip"
-    model.save(temporary)
-    os.replace(temporary, final)
     if off_policy:  # with the final model, so that a longer run can continue from here
-        model.save_replay_buffer(args.output / "replay_buffer.pkl")
+        ckpt.save_replay_buffer(model, args.output / "replay_buffer.pkl")
+    ckpt.save_model(model, final)
     vec_env.close()
     print(f"trained {model.num_timesteps} steps; model: {final}")
     return final

@@ -15,8 +15,10 @@ Options (keyword arguments of :func:`external_agent`, ``evaluate.py`` flags):
 ``cwd`` (``--planner-cwd``), ``port`` (``--planner-port``), ``map_export``
 (``--planner-map``), ``startup_timeout`` / ``reply_timeout`` (``--planner-startup`` /
 ``--planner-timeout``), ``log_path`` (evaluate puts it in the run folder:
-``planner_logs/<agent>_seed<seed>.log``), ``manual_probe``. The reply latency is the env's:
-``--reply-latency N`` sets ``steps_per_action = latency_steps = N`` frames.
+``planner_logs/<agent>_seed<seed>.log``), ``log_limit`` (``--planner-log-limit`` MiB: the
+log's largest size; more output ends the episode ``log_flooded``), ``manual_probe``. The
+reply latency is the env's: ``--reply-latency N`` sets ``steps_per_action = latency_steps =
+N`` frames.
 """
 
 from __future__ import annotations
@@ -35,6 +37,7 @@ from numpy.typing import NDArray
 
 from agents.protocol import EpisodeAborted
 from sdc_gym.bridge import (
+    DEFAULT_LOG_LIMIT_BYTES,
     BridgeError,
     InvalidPath,
     PlannerMap,
@@ -45,6 +48,8 @@ from sdc_gym.bridge import (
 from sdc_gym.envs import HighwayLoopEnv
 
 EXTERNAL_KIND: Final = "external"
+MIB: Final = 1024 * 1024
+MIN_LOG_LIMIT_BYTES: Final = 1024
 LOG_FOLDER: Final = "planner_logs"
 """Folder of the run's output where each episode's planner output is captured."""
 
@@ -163,6 +168,12 @@ def add_external_arguments(parser: argparse.ArgumentParser) -> None:
                        help="wall seconds to wait for each reply (default 5)")
     group.add_argument("--planner-startup", type=float, default=10.0, metavar="S",
                        help="wall seconds to wait for the planner to listen (default 10)")
+    group.add_argument("--planner-log-limit", type=float,
+                       default=DEFAULT_LOG_LIMIT_BYTES / MIB, metavar="MIB",
+                       help="largest planner log, MiB (default "
+                            f"{DEFAULT_LOG_LIMIT_BYTES / MIB:g}): a planner printing more "
+                            "is stopped, its episode ends 'log_flooded', and its log keeps "
+                            "the beginning and the last part")
 
 
 def check_external_arguments(parser: argparse.ArgumentParser, args: argparse.Namespace) -> None:
@@ -172,6 +183,9 @@ def check_external_arguments(parser: argparse.ArgumentParser, args: argparse.Nam
     for flag in ("planner_timeout", "planner_startup"):
         if not getattr(args, flag) > 0:
             parser.error(f"--{flag.replace('_', '-')} must be > 0 s, got {getattr(args, flag)}")
+    if not args.planner_log_limit * MIB >= MIN_LOG_LIMIT_BYTES:
+        parser.error(f"--planner-log-limit must be >= {MIN_LOG_LIMIT_BYTES / MIB:g} MiB, got "
+                     f"{args.planner_log_limit}")
     if args.planner_port is not None and not 0 < args.planner_port < 65536:
         parser.error(f"--planner-port must be in 1..65535, got {args.planner_port}")
     for folder in args.planner_cwd or ():
@@ -223,6 +237,7 @@ def external_options(args: argparse.Namespace, agent: str, seed: int) -> dict[st
         "map_export": args.planner_map,
         "startup_timeout": args.planner_startup,
         "reply_timeout": args.planner_timeout,
+        "log_limit": round(args.planner_log_limit * MIB),
         "log_path": str(args.output / LOG_FOLDER / f"{slug}_seed{seed}.log"),
     }
 

@@ -8,7 +8,8 @@ advances and finishes:
 
 * :class:`InProcessBackend`: one after the other in this process;
 * :class:`ProcessPoolBackend`: a local pool of worker processes
-  (:class:`concurrent.futures.ProcessPoolExecutor`), each pinned to one math thread.
+  (:class:`concurrent.futures.ProcessPoolExecutor`), each pinned to one math thread, each
+  ending itself when the process that made the pool dies (even by ``kill -9``).
 
 Another executor (a cluster) plugs in as one more backend with the same two methods'
 contract; nothing else in the evaluation depends on where episodes run.
@@ -18,12 +19,16 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
+import threading
+import time
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from queue import Empty
 from typing import Any, Protocol
 
 from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_gym.bridge.reaper import prctl
 from sdc_gym.units import METERS_PER_MILE
 
 
@@ -72,13 +77,41 @@ cores, and a torch model (the light classifiers) using every core in every worke
 ~10 x slower than single-threaded."""
 
 _WORKER_QUEUE: Any = None  # a worker process's progress queue, set by _init_worker
+PR_SET_PDEATHSIG = 1  # <linux/prctl.h>
+PARENT_POLL_S = 0.5  # how often a worker checks that its parent is still there
 
 
-def _init_worker(queue: Any) -> None:
+def _init_worker(queue: Any, owner: int) -> None:
     global _WORKER_QUEUE  # per-process state of the pool's workers
     _WORKER_QUEUE = queue
     for variable in WORKER_THREAD_VARIABLES:  # read by torch when a worker imports it
         os.environ.setdefault(variable, "1")
+    _die_with_parent(owner)
+
+
+def _die_with_parent(owner: int) -> None:
+    """End this worker when its parent dies, even by ``kill -9``, which leaves the pool
+    no chance to stop its workers. The parent is ``owner``, the process that made the
+    pool (or, with the forkserver start method, the fork server, which ends with it).
+
+    Linux: the kernel sends SIGKILL when the parent exits (``PR_SET_PDEATHSIG``). Elsewhere,
+    and as a fallback, a daemon thread sees the parent process id change (the worker was
+    re-parented) and exits. A worker's planner (``external:``) is then ended by its own
+    watchdog (:mod:`sdc_gym.bridge.reaper`).
+    """
+    parent = os.getppid()
+    prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    try:
+        os.kill(owner, 0)
+    except ProcessLookupError:  # it died before the flag was set
+        os._exit(1)
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        os._exit(1)
+
+    threading.Thread(target=watch, name="parent watchdog", daemon=True).start()
 
 
 def _run_in_worker(index: int, spec: EpisodeSpec) -> dict[str, Any]:
@@ -121,7 +154,7 @@ class ProcessPoolBackend:
         try:
             with ProcessPoolExecutor(max_workers=min(self.workers, len(specs)),
                                      mp_context=context, initializer=_init_worker,
-                                     initargs=(queue,)) as pool:
+                                     initargs=(queue, os.getpid())) as pool:
                 futures = {pool.submit(_run_in_worker, i, spec): i
                            for i, spec in enumerate(specs)}
                 pending = set(futures)

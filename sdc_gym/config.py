@@ -24,8 +24,10 @@ def _type_name(value: Any) -> str:
 
 def _compatible(default: Any, value: Any) -> bool:
     """Whether ``value`` may replace ``default`` (numbers widen, None defaults take any)."""
-    if default is None or value is None:
+    if default is None:  # an optional key (e.g. start_s): its rule checks the value
         return True
+    if value is None:  # None never stands in for a number, a name or a flag
+        return False
     if isinstance(default, bool):
         return isinstance(value, bool)
     if isinstance(default, int):

@@ -50,7 +50,7 @@ def test_discrete_actions_decode_as_documented():
     assert HighwayDecision.from_index(8) == HighwayDecision(1, "slow")
     assert HighwayDecision.from_index(np.int64(4)) == HighwayDecision(0, "hold")
     for bad in (9, -1, 2.0, True, "3"):
-        with pytest.raises(ValueError, match=r"highway decision|out of range"):
+        with pytest.raises(ValueError, match=r"Discrete\(9\) action|out of range"):
             HighwayDecision.from_index(bad)
 
 

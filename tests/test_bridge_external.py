@@ -28,6 +28,7 @@ from sdc_gym.bridge import (
     lockstep_config,
 )
 from tests.planners.protocol_planner import Planner, TelemetryLaneKeeper
+from tests.processes import process_gone
 
 PLANNER = Path(__file__).resolve().parent / "planners" / "protocol_planner.py"
 HIGHWAY = "sdc_gym/HighwayLoop-v0"
@@ -44,22 +45,6 @@ def planner_command(*arguments: str) -> str:
 
 def external(*arguments: str) -> str:
     return "external:" + planner_command(*arguments)
-
-
-def process_gone(pid: int, wait_s: float = 5.0) -> bool:
-    """No such process, or only its zombie, within ``wait_s`` (a killed process exits
-    when the kernel next schedules it, a moment after the signal)."""
-    deadline = time.monotonic() + wait_s
-    while True:
-        try:
-            state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
-        except FileNotFoundError:
-            return True
-        if state in ("Z", "X"):
-            return True
-        if time.monotonic() > deadline:
-            return False
-        time.sleep(0.01)
 
 
 def run(agent: str, config: dict, seed: int = 0, **options) -> dict:

@@ -35,3 +35,14 @@ def test_unknown_nested_key_and_wrong_types():
         resolve_config(DEFAULTS, {"nested": 3}, owner="X")
     with pytest.raises(ConfigError, match="expects bool"):
         resolve_config(DEFAULTS, {"nested": {"b": 1}}, owner="X")
+
+
+def test_none_never_stands_in_for_a_value_whose_default_is_not_none():
+    """Found by fuzzing the batch: ``shield.abort_gap_m: None`` reached the shield's
+    ``>=`` check as a raw TypeError."""
+    import gymnasium as gym
+
+    import sdc_gym  # noqa: F401
+    with pytest.raises(ConfigError, match=r"'abort_gap_m' expects float, got NoneType"):
+        gym.make("sdc_gym/HighwayLoopBehavior-v0", config={"shield": {"abort_gap_m": None}})
+    gym.make("sdc_gym/HighwayLoop-v0", config={"start_s": None}).close()  # None default: ok

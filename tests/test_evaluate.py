@@ -167,7 +167,7 @@ def test_evaluate_rejects_bad_files(tmp_path, monkeypatch):
     broken.write_text("config: [unclosed\n")
     with pytest.raises(SystemExit, match="not valid YAML"):
         evaluate.main(["--config", str(broken)])
-    with pytest.raises(SystemExit, match="no such config file"):
+    with pytest.raises(SystemExit, match="config file not found"):
         evaluate.main(["--config", str(tmp_path / "missing.yaml")])
     unknown = tmp_path / "unknown.yaml"
     unknown.write_text("config:\n  no_such_key: 1\n")

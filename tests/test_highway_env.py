@@ -50,7 +50,7 @@ def test_unknown_config_key_lists_valid_keys():
     [
         ([[np.nan, 1.0]], "not finite"),
         ([[1e9, 1e9]], "outside the action bounds"),
-        ([["a", "b"]], "numeric"),
+        ([["a", "b"]], "a real dtype"),
         (np.zeros((3, 3)), "shape"),
         (np.full((51, 2), 500.0), "at most path_points = 50"),
     ],

@@ -189,7 +189,7 @@ def test_waypoints_tolerate_crlf_comments_and_a_fifth_column(tmp_path):
 @pytest.mark.parametrize(
     ("text", "fragment"),
     [
-        (SQUARE + "1,2,3\n", ":5: expected 4 fields 'x,y,z,yaw' (a 5th is ignored), got 3"),
+        (SQUARE + "1,2,3\n", ":5: expected 4 fields 'x,y,z,yaw' (a 5th is ignored"),
         (SQUARE + "1,2,3,4,5,6\n", ":5: expected 4 fields"),
         ("0,0,0,0\n1,x,0,0\n", ":2: not a number in '1,x,0,0'"),
         ("0,0,0,0\n1,nan,0,0\n", ":2: non-finite value in '1,nan,0,0'"),

@@ -9,8 +9,9 @@ drives our env unchanged, faster than real time:
 * :mod:`~sdc_gym.bridge.protocol`: the frames, with the original's float formatting;
 * :mod:`~sdc_gym.bridge.connection`: the websocket client, one lock-step exchange per
   env step;
-* :mod:`~sdc_gym.bridge.process`: one planner process per episode, output to a log file,
-  stopped with its whole process group;
+* :mod:`~sdc_gym.bridge.process`: one planner process per episode under a watchdog
+  (:mod:`~sdc_gym.bridge.reaper`) that ends its whole process tree, output to a log file
+  of bounded size (:mod:`~sdc_gym.bridge.planner_log`);
 * :mod:`~sdc_gym.bridge.session`: the three together, faults named by their cause;
 * :mod:`~sdc_gym.bridge.map_file`: any of our maps as the original ``highway_map.csv``
   (command line: ``python -m sdc_gym.bridge.export_map``).
@@ -36,12 +37,14 @@ from sdc_gym.bridge.errors import (
     NonFinitePoint,
     PlannerDied,
     PlannerDisconnected,
+    PlannerLogFlooded,
     PlannerNotFound,
     PlannerNotListening,
     PortInUse,
     ReplyTimeout,
 )
 from sdc_gym.bridge.map_file import PlannerMap, export_highway_map
+from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES
 from sdc_gym.bridge.process import PlannerProcess
 from sdc_gym.bridge.protocol import DEFAULT_PORT, decode_reply, encode_telemetry
 from sdc_gym.bridge.session import PlannerOptions, PlannerSession
@@ -58,10 +61,11 @@ def lockstep_config(reply_latency_frames: int) -> dict[str, Any]:
 
 
 __all__ = [
-    "DEFAULT_PORT", "FAULT_REASONS", "BridgeError", "EmptyPath", "ExchangeStats", "InvalidPath",
+    "DEFAULT_LOG_LIMIT_BYTES", "DEFAULT_PORT", "FAULT_REASONS", "BridgeError", "EmptyPath",
+    "ExchangeStats", "InvalidPath",
     "MalformedReply", "ManualReply", "NonFinitePoint", "PlannerConnection", "PlannerDied",
-    "PlannerDisconnected", "PlannerMap", "PlannerNotFound", "PlannerNotListening",
-    "PlannerOptions", "PlannerProcess", "PlannerSession", "PortInUse", "ReplyTimeout",
-    "decode_reply",
+    "PlannerDisconnected", "PlannerLogFlooded", "PlannerMap", "PlannerNotFound",
+    "PlannerNotListening", "PlannerOptions", "PlannerProcess", "PlannerSession", "PortInUse",
+    "ReplyTimeout", "decode_reply",
     "encode_telemetry", "export_highway_map", "lockstep_config",
 ]

@@ -80,8 +80,16 @@ class InvalidPath(BridgeError):
     reason = "invalid_path"
 
 
+class PlannerLogFlooded(BridgeError):
+    """The planner printed more than its log's limit (it is ended; the log keeps its
+    beginning and its last part)."""
+
+    reason = "log_flooded"
+
+
 FAULT_REASONS: tuple[str, ...] = tuple(
     cls.reason for cls in (
         PlannerNotFound, PortInUse, PlannerNotListening, PlannerDied, PlannerDisconnected,
-        ReplyTimeout, MalformedReply, ManualReply, EmptyPath, NonFinitePoint, InvalidPath))
+        ReplyTimeout, MalformedReply, ManualReply, EmptyPath, NonFinitePoint, InvalidPath,
+        PlannerLogFlooded))
 """Every fault reason, as found in an episode's ``termination_reason``."""

@@ -1,13 +1,18 @@
 """Launching an external planner, capturing its output, and ending it with all its children.
 
 The original's planners keep state across reconnections and many crash when the
-simulator disconnects, so each episode gets a fresh process. It runs in its own session
-(process group) in the planner's working directory, the way ``cd DIR && COMMAND`` would
-(they read their map from a path relative to it). Its standard output and error go to one
-log file. :meth:`PlannerProcess.stop` signals the whole group, so a planner started
-through a shell script or one that forks leaves nothing behind; and a small watchdog
-(:mod:`sdc_gym.bridge.reaper`) does the same if the process that started the planner is
-killed before it can call ``stop()``.
+simulator disconnects, so each episode gets a fresh process. It runs in the planner's
+working directory, the way ``cd DIR && COMMAND`` would (they read their map from a path
+relative to it), in its own session. Its standard output and error go through a pipe to
+one log file of bounded size (:mod:`sdc_gym.bridge.planner_log`): a planner that prints
+more than the limit has *flooded*, is ended, and its episode ends with the reason
+``log_flooded``.
+
+The planner is started by a small watchdog process, :mod:`sdc_gym.bridge.reaper`, which
+is a child subreaper: every process of the planner's tree, even a ``setsid`` grandchild
+that outlives the planner, stays below it. :meth:`PlannerProcess.stop` asks it to end the
+whole tree (SIGTERM, a grace period, SIGKILL); it does the same by itself if the process
+that started the planner is killed before it can call ``stop()``.
 
 The port: a command containing ``{port}`` (e.g. ``python planner.py --port {port}``) gets
 a free port picked here, so episodes can run in parallel; otherwise the planner listens
@@ -17,21 +22,27 @@ on its own hard-wired port, 4567 for the original's template (``port=`` override
 from __future__ import annotations
 
 import os
+import select
 import shlex
 import signal
 import socket
 import subprocess
 import sys
 import tempfile
+import threading
+import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import IO, Final
+from typing import Final
 
 from sdc_gym.bridge.errors import PlannerDied, PlannerNotFound, PortInUse
+from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES, CappedLog
 from sdc_gym.bridge.protocol import DEFAULT_PORT
 
 PORT_PLACEHOLDER: Final = "{port}"
-STOP_GRACE_S: Final = 2.0  # between SIGTERM to the group and SIGKILL
+STOP_GRACE_S: Final = 2.0  # between SIGTERM to the tree and SIGKILL (the reaper's GRACE_S)
+REAPER_EXIT_S: Final = 3.0  # beyond the grace: the reaper's SIGKILL sweep and its own exit
+STARTUP_WAIT_S: Final = 30.0  # for the reaper (a Python start-up) to start the planner
 LOG_TAIL_LINES: Final = 12  # lines of the planner's output quoted in fault messages
 REAPER_SCRIPT: Final = Path(__file__).with_name("reaper.py")  # run as a script: stdlib only
 
@@ -62,10 +73,13 @@ class PlannerProcess:
             has ``{port}``, else :data:`~sdc_gym.bridge.protocol.DEFAULT_PORT`.
         log_path: file for the planner's output (created with its folder, overwritten);
             ``None``: a new file in the system's temporary folder.
+        log_limit: the log file's largest size in bytes; more output floods it
+            (:attr:`log_flooded`) and ends the planner.
     """
 
     def __init__(self, command: str | Sequence[str], *, cwd: str | os.PathLike[str] | None = None,
-                 port: int | None = None, log_path: str | os.PathLike[str] | None = None) -> None:
+                 port: int | None = None, log_path: str | os.PathLike[str] | None = None,
+                 log_limit: int = DEFAULT_LOG_LIMIT_BYTES) -> None:
         arguments = shlex.split(command) if isinstance(command, str) else list(command)
         if not arguments:
             raise PlannerNotFound("the planner command is empty")
@@ -77,25 +91,41 @@ class PlannerProcess:
                           for argument in arguments]
         self.cwd = Path(cwd) if cwd is not None else Path.cwd()
         self.log_path = Path(log_path) if log_path is not None else None
-        self._popen: subprocess.Popen[bytes] | None = None
+        self.log_limit = int(log_limit)
         self._reaper: subprocess.Popen[bytes] | None = None
-        self._log: IO[bytes] | None = None
+        self._log: CappedLog | None = None
+        self._control: int | None = None  # our end of the reaper's stdin: closing it = stop
+        self._control_lock = threading.Lock()
+        self._status: int | None = None  # the reaper's status pipe
+        self._status_buffer = b""
+        self._pid: int | None = None
+        self._exit_code: int | None = None
         self._stopped = False
 
     @property
     def pid(self) -> int | None:
         """The planner's process id (also its process group id), once started."""
-        return self._popen.pid if self._popen is not None else None
+        return self._pid
+
+    @property
+    def reaper_pid(self) -> int | None:
+        """The process id of the watchdog that is the planner's parent."""
+        return self._reaper.pid if self._reaper is not None else None
 
     @property
     def command_line(self) -> str:
         return shlex.join(self.arguments)
 
+    @property
+    def log_flooded(self) -> bool:
+        """Whether the planner printed more than :attr:`log_limit` bytes."""
+        return self._log is not None and self._log.flooded
+
     def start(self) -> None:
         """Launch the planner. Raises :class:`~sdc_gym.bridge.errors.PortInUse` when
         something already listens on the port (we would talk to it instead) and
         :class:`~sdc_gym.bridge.errors.PlannerNotFound` when the command cannot run."""
-        if self._popen is not None:
+        if self._reaper is not None:
             raise RuntimeError("the planner process was already started")
         if not self.cwd.is_dir():
             raise PlannerNotFound(f"the planner's working directory does not exist: {self.cwd}")
@@ -109,24 +139,74 @@ class PlannerProcess:
             os.close(handle)
             self.log_path = Path(name)
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
-        self._log = self.log_path.open("wb")
+        log_read, log_write = os.pipe()
         try:
-            self._popen = subprocess.Popen(
-                self.arguments, cwd=self.cwd, stdin=subprocess.DEVNULL, stdout=self._log,
-                stderr=subprocess.STDOUT, start_new_session=True)
-        except OSError as error:  # FileNotFoundError, PermissionError, ...
-            self._close_log()
-            raise PlannerNotFound(
-                f"cannot start the planner {self.command_line!r} in {self.cwd}: "
-                f"{error.strerror or error}") from None
-        self._reaper = subprocess.Popen(
-            [sys.executable, str(REAPER_SCRIPT), str(self._popen.pid), str(os.getpid())],
-            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-            start_new_session=True)
+            self._log = CappedLog(log_read, self.log_path, self.log_limit,
+                                  on_flood=self._end_tree)
+        except BaseException:
+            os.close(log_read)
+            os.close(log_write)
+            raise
+        status_read, status_write = os.pipe()
+        control_read, control_write = os.pipe()
+        try:
+            self._reaper = subprocess.Popen(
+                [sys.executable, str(REAPER_SCRIPT), str(os.getpid()), str(status_write),
+                 "--", *self.arguments],
+                cwd=self.cwd, stdin=control_read, stdout=log_write, stderr=log_write,
+                pass_fds=(status_write,), start_new_session=True)
+        except BaseException:
+            os.close(status_read)
+            os.close(control_write)
+            raise
+        finally:  # the log's reader sees its end of file once every writer is gone
+            for fd in (log_write, status_write, control_read):
+                os.close(fd)
+        self._control, self._status = control_write, status_read
+        line = self._status_line(STARTUP_WAIT_S)
+        if line is not None and line.startswith("started "):
+            self._pid = int(line.split()[1])
+            return
+        self.stop()
+        reason = (line.split(maxsplit=2)[2] if line is not None and line.startswith("error ")
+                  else f"its watchdog did not start it within {STARTUP_WAIT_S:g} s"
+                  f"{self._tail()}")
+        raise PlannerNotFound(f"cannot start the planner {self.command_line!r} in "
+                              f"{self.cwd}: {reason}")
+
+    def _status_line(self, timeout: float) -> str | None:
+        """The reaper's next status line within ``timeout`` s (``None``: none came)."""
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self._status_buffer:
+            if self._status is None:
+                return None
+            left = deadline - time.monotonic()
+            readable, _, _ = select.select([self._status], [], [], max(left, 0.0))
+            if not readable:
+                return None
+            chunk = os.read(self._status, 4096)
+            if not chunk:  # the reaper exited
+                os.close(self._status)
+                self._status = None
+                return None
+            self._status_buffer += chunk
+        line, _, self._status_buffer = self._status_buffer.partition(b"\n")
+        return line.decode()
+
+    def _poll_status(self, timeout: float = 0.0) -> None:
+        """Read the reaper's status lines until the planner's exit or ``timeout`` s."""
+        deadline = time.monotonic() + timeout
+        while self._exit_code is None:
+            line = self._status_line(max(deadline - time.monotonic(), 0.0))
+            if line is None:
+                return
+            if line.startswith("exit "):
+                self._exit_code = int(line.split()[1])
 
     def exit_code(self) -> int | None:
         """The planner's exit status once it has exited (negative: killed by that signal)."""
-        return self._popen.poll() if self._popen is not None else None
+        self._poll_status()
+        return self._exit_code
 
     def check_alive(self) -> None:
         """Raise :class:`~sdc_gym.bridge.errors.PlannerDied` if the planner has exited."""
@@ -136,57 +216,50 @@ class PlannerProcess:
 
     def wait_exit(self, timeout: float) -> int | None:
         """Wait up to ``timeout`` s for the planner to exit; its exit status or ``None``."""
-        if self._popen is None:
+        if self._reaper is None:
             return None
-        try:
-            return self._popen.wait(timeout)
-        except subprocess.TimeoutExpired:
-            return None
+        self._poll_status(timeout)
+        return self._exit_code
 
     def log_tail(self, lines: int = LOG_TAIL_LINES) -> str:
         """The last ``lines`` lines of the planner's output so far."""
-        if self.log_path is None or not self.log_path.is_file():
-            return ""
-        if self._log is not None:
-            self._log.flush()
-        with self.log_path.open("rb") as handle:
-            handle.seek(0, os.SEEK_END)
-            handle.seek(max(handle.tell() - 8192, 0))
-            text = handle.read().decode("utf-8", "replace")
-        return "\n".join(text.splitlines()[-lines:])
+        return self._log.tail_text(lines) if self._log is not None else ""
 
     def _tail(self) -> str:
         tail = self.log_tail()
         where = f"; its output is in {self.log_path}"
         return f"{where}, ending:\n{tail}" if tail else f"{where} (empty)"
 
+    def _end_tree(self) -> None:
+        """Ask the reaper to end the planner's tree (any thread; safe to repeat)."""
+        with self._control_lock:
+            if self._control is not None:
+                os.close(self._control)
+                self._control = None
+
     def stop(self) -> None:
-        """End the planner and every process of its group (safe to call twice).
+        """End the planner and every process of its tree (safe to call twice).
 
-        SIGTERM to the group, up to :data:`STOP_GRACE_S` for the planner to exit, then
-        SIGKILL to whatever of the group is left.
+        The reaper sends SIGTERM to the tree, waits up to :data:`STOP_GRACE_S` for it to
+        exit, then SIGKILLs whatever is left, and exits; the log file is then finished.
         """
-        popen = self._popen
-        if popen is not None and not self._stopped:
-            self._stopped = True  # never signal the group id again: it could be reused
-            group = popen.pid  # start_new_session: the planner leads its own group
-            _signal_group(group, signal.SIGTERM)
+        reaper = self._reaper
+        if reaper is not None and not self._stopped:
+            self._stopped = True
+            self._end_tree()
             try:
-                popen.wait(STOP_GRACE_S)
-            except subprocess.TimeoutExpired:
-                pass
-            _signal_group(group, signal.SIGKILL)  # children that outlived their parent
-            popen.wait()
-        reaper, self._reaper = self._reaper, None
-        if reaper is not None:  # its planner is gone: nothing left to watch
-            reaper.terminate()
-            reaper.wait()
-        self._close_log()
-
-    def _close_log(self) -> None:
+                reaper.wait(STOP_GRACE_S + REAPER_EXIT_S)
+            except subprocess.TimeoutExpired:  # cannot happen unless the reaper hangs
+                if self._pid is not None:
+                    _signal_group(self._pid, signal.SIGKILL)
+                reaper.kill()
+                reaper.wait()
+            self._poll_status()
+            if self._status is not None:
+                os.close(self._status)
+                self._status = None
         if self._log is not None:
             self._log.close()
-            self._log = None
 
     def __enter__(self) -> PlannerProcess:
         self.start()

@@ -33,9 +33,11 @@ from sdc_gym.bridge.errors import (
     BridgeError,
     PlannerDied,
     PlannerDisconnected,
+    PlannerLogFlooded,
     ReplyTimeout,
 )
 from sdc_gym.bridge.map_file import PlannerMap
+from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES
 from sdc_gym.bridge.process import PlannerProcess
 from sdc_gym.road.highway_map import HighwayMap
 
@@ -58,6 +60,9 @@ class PlannerOptions:
         startup_timeout: how long to retry connecting while the planner starts.
         reply_timeout: how long to wait for each reply before giving up on the planner.
         log_path: file for the planner's output (default: a temporary file).
+        log_limit: bytes; the log file never grows past this (it keeps its beginning and
+            its end), and a planner printing more has flooded it: it is ended and the
+            episode ends with the reason ``log_flooded``.
         manual_probe: send one manual-mode message (``42["telemetry",null]``) after
             connecting and require ``42["manual",{}]`` back, as a protocol check. The
             original sends those only in manual mode, so this is off by default.
@@ -69,6 +74,7 @@ class PlannerOptions:
     startup_timeout: float = 10.0
     reply_timeout: float = 5.0
     log_path: str | None = None
+    log_limit: int = DEFAULT_LOG_LIMIT_BYTES
     manual_probe: bool = False
 
     def __post_init__(self) -> None:
@@ -77,6 +83,9 @@ class PlannerOptions:
                 raise ValueError(f"{name} must be > 0 s, got {getattr(self, name)!r}")
         if self.port is not None and not 0 < self.port < 65536:
             raise ValueError(f"port must be in 1..65535 (or None), got {self.port!r}")
+        if isinstance(self.log_limit, bool) or not isinstance(self.log_limit, int) \
+                or self.log_limit < 1024:
+            raise ValueError(f"log_limit must be an int >= 1024 bytes, got {self.log_limit!r}")
 
 
 class PlannerSession:
@@ -95,7 +104,8 @@ class PlannerSession:
             raise ValueError("map_export needs the road to export (pass road=env.unwrapped.road)")
         self.road = road
         self.process = PlannerProcess(command, cwd=self.options.cwd, port=self.options.port,
-                                      log_path=self.options.log_path)
+                                      log_path=self.options.log_path,
+                                      log_limit=self.options.log_limit)
         self.connection: PlannerConnection | None = None
         self.map_file: Path | None = None
         self._planner_map: PlannerMap | None = None
@@ -139,6 +149,26 @@ class PlannerSession:
 
     def _explained(self, call: Any, *args: Any) -> Any:
         """Run ``call``; on a fault, name the real cause and where the planner's output is."""
+        self._check_log()
+        try:
+            result = self._named(call, *args)
+        except BridgeError:
+            self._check_log()  # a flood ends the planner: that is the cause of the rest
+            raise
+        self._check_log()
+        return result
+
+    def _check_log(self) -> None:
+        """Raise :class:`~sdc_gym.bridge.errors.PlannerLogFlooded` once the log flooded."""
+        process = self.process
+        if process.log_flooded:
+            raise PlannerLogFlooded(
+                f"the planner printed more than its log limit of {process.log_limit} bytes "
+                f"and was stopped (after {self.stats.exchanges} exchanges); its log "
+                f"{process.log_path} keeps the beginning and the last part") from None
+
+    def _named(self, call: Any, *args: Any) -> Any:
+        """Run ``call``; a connection's symptom becomes its cause (the process died)."""
         try:
             return call(*args)
         except (PlannerDisconnected, ReplyTimeout) as error:

@@ -36,6 +36,7 @@ from sdc_gym.stack.highway.perception import (
 )
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import WorldModel
+from sdc_gym.validation.env_configs import check_highway_behavior_config
 from sdc_gym.vehicle.path_follower import PHYSICS_DT
 
 FloatArray = NDArray[np.float64]
@@ -76,8 +77,7 @@ class HighwayBehaviorWorld:
         if "steps_per_action" in cfg["highway"]:
             raise ConfigError(f"{owner}: set the decision period with 'decision_frames', "
                               "not highway.steps_per_action")
-        require(isinstance(cfg["decision_frames"], int) and cfg["decision_frames"] >= 1,
-                owner, "decision_frames", "an int >= 1", cfg["decision_frames"])
+        check_highway_behavior_config(cfg, owner)  # sdc_gym.validation
         require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
                 cfg["action"])
         require(cfg["slow_step_mps"] > 0, owner, "slow_step_mps", "> 0 m/s",

@@ -39,6 +39,8 @@ from sdc_gym.envs.highway_behavior import behavior_spaces
 from sdc_gym.envs.highway_behavior_world import HighwayBehaviorWorld
 from sdc_gym.envs.highway_loop import highway_spaces
 from sdc_gym.envs.highway_world import HighwayWorld
+from sdc_gym.stack.highway.decisions import ACTION_NAMES
+from sdc_gym.validation.actions import discrete_indices, real_array
 
 _MODES = {mode.value: mode for mode in AutoresetMode}
 
@@ -234,10 +236,11 @@ class HighwayLoopBehaviorVectorEnv(_BatchVectorEnv):
         return self.batch.observations[env].copy()
 
     def _step_batch(self, actions: Any) -> tuple[NDArray, NDArray, NDArray, list[Any]]:
-        actions = np.asarray(actions)
-        expected = (self.num_envs,) if self.batch.discrete else (self.num_envs, 2)
-        if actions.shape != expected:
-            raise ValueError(f"actions must have shape {expected}, got {actions.shape}")
+        if self.batch.discrete:
+            actions = discrete_indices(actions, self.num_envs, ACTION_NAMES)
+        else:
+            actions = real_array(actions, (self.num_envs, 2), "actions",
+                                 "one (lane, speed) decision in [-1, 1] per env")
         reward, terminated, truncated, incidents = self.batch.step(actions)
         return reward, terminated.copy(), truncated.copy(), list(incidents)
 
@@ -279,11 +282,9 @@ class HighwayLoopVectorEnv(_BatchVectorEnv):
         return self.world.observation(env)
 
     def _step_batch(self, actions: Any) -> tuple[NDArray, NDArray, NDArray, list[Any]]:
-        paths = np.asarray(actions, dtype=np.float64)
-        expected = (self.num_envs, self.world.path_points, 2)
-        if paths.shape != expected:
-            raise ValueError(f"actions must have shape {expected} (repeat the last point to "
-                             f"send fewer), got {paths.shape}")
+        paths = real_array(actions, (self.num_envs, self.world.path_points, 2), "actions",
+                           "one path of (x, y) map points per env (repeat the last point "
+                           "to send fewer)")
         lengths = self.world.check_paths(paths, self._lengths)
         result = self.world.step(paths, lengths)
         return (result.reward, result.terminated.copy(), result.truncated.copy(),

@@ -31,10 +31,12 @@ from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
-from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.road.highway_map import HighwayMap, MapFormatError
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig
 from sdc_gym.traffic import IDMParameters, TrafficConfig
 from sdc_gym.traffic.batch import TrafficBatch
+from sdc_gym.validation.actions import real_array
+from sdc_gym.validation.env_configs import check_highway_config, check_highway_start
 from sdc_gym.vehicle.path_follower import PHYSICS_DT, PathFollower
 
 FloatArray = NDArray[np.float64]
@@ -163,20 +165,19 @@ class HighwayWorld:
     def __init__(self, config: dict[str, Any] | None = None, envs: int = 1,
                  owner: str = "HighwayLoop-v0") -> None:
         self.config = cfg = resolve_config(HIGHWAY_DEFAULTS, config, owner=owner)
-        require(isinstance(envs, int) and envs >= 1, owner, "num_envs", "an int >= 1", envs)
-        require(cfg["path_points"] >= 2, owner, "path_points", "an int >= 2", cfg["path_points"])
-        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
-                cfg["steps_per_action"])
+        require(isinstance(envs, int) and not isinstance(envs, bool) and envs >= 1, owner,
+                "num_envs", "an int >= 1", envs)
+        check_highway_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
         if cfg["latency_steps"] is None:
             cfg["latency_steps"] = cfg["steps_per_action"]
-        require(isinstance(cfg["latency_steps"], int) and cfg["latency_steps"] >= 0, owner,
-                "latency_steps", "None or an int >= 0", cfg["latency_steps"])
-        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
-        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
         require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
                 f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
         self.envs = envs
-        self.road: HighwayMap = get_highway_map(cfg["map"])
+        try:
+            self.road: HighwayMap = get_highway_map(cfg["map"])
+        except MapFormatError as error:
+            raise ConfigError(f"{owner}: config key 'map': {error}") from None
+        check_highway_start(cfg, self.road.road_width, owner)
         traffic_cfg = dict(cfg["traffic"])
         traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
         traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])
@@ -255,10 +256,8 @@ class HighwayWorld:
     def validate_path(self, action: Any) -> FloatArray:
         """One env's action as an ``(m, 2)`` float array of real points (trailing repeats
         of the last point dropped), or a clear ``ValueError``."""
-        try:
-            points = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError) as error:
-            raise ValueError(f"path must be numeric (x, y) points: {error}") from None
+        points = real_array(action, None, "path", f"(x, y) map points, shape (m, 2) with "
+                            f"m <= path_points = {self.path_points}")
         if points.size == 0:
             return np.zeros((0, 2))
         if points.ndim != 2 or points.shape[1] != 2:

@@ -19,6 +19,7 @@ from sdc_gym.stack.track.decisions import (
     action_decision,
 )
 from sdc_gym.stack.track.detector import GroundTruthLightSource
+from sdc_gym.validation.env_configs import check_track_behavior_config
 from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
 ACTION_TYPES = ("discrete", "continuous")
@@ -93,6 +94,7 @@ class TrackLoopBehaviorEnv(gym.Env):
                 "a mapping of TrackLoop-v0 config keys", cfg["track"])
         require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
                 cfg["action"])
+        check_track_behavior_config(cfg, owner)  # the track's step first: it is used here
         step_s = PHYSICS_DT * cfg["track"].get("steps_per_action", 1)
         ticks = cfg["decision_period_s"] / step_s
         if not (cfg["decision_period_s"] > 0 and round(ticks) >= 1

@@ -35,6 +35,8 @@ from sdc_gym.sensors.track_camera import (
     TrackCamera,
 )
 from sdc_gym.units import MPS_TO_MPH
+from sdc_gym.validation.actions import real_array
+from sdc_gym.validation.env_configs import check_track_config
 from sdc_gym.vehicle.dbw_vehicle import (
     PHYSICS_DT,
     VEHICLE_PRESETS,
@@ -375,10 +377,7 @@ class TrackLoopEnv(TopDownRenderEnv):
         cfg = self.config
         self._init_render_mode(render_mode)
         self._given = dict(config or {})  # the user's own keys, to catch ignored ones
-        require(cfg["steps_per_action"] >= 1, owner, "steps_per_action", "an int >= 1",
-                cfg["steps_per_action"])
-        require(cfg["laps"] >= 1, owner, "laps", "an int >= 1", cfg["laps"])
-        require(cfg["max_duration"] > 0, owner, "max_duration", "> 0 s", cfg["max_duration"])
+        check_track_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
         self._check_optional_keys(owner)
 
         try:
@@ -746,15 +745,8 @@ class TrackLoopEnv(TopDownRenderEnv):
         if isinstance(action, np.ndarray) and action.shape == (3,) and action.dtype.kind == "f":
             values = action.tolist()
         else:
-            try:
-                array = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError) as error:
-                raise ValueError(f"action must be 3 numbers [throttle, brake_torque, "
-                                 f"steering_wheel_angle]: {error}") from None
-            if array.shape != (3,):
-                raise ValueError(f"action must have shape (3,): [throttle, brake_torque, "
-                                 f"steering_wheel_angle], got shape {array.shape}")
-            values = array.tolist()
+            values = real_array(action, (3,), "action", "[throttle, brake_torque, "
+                                "steering_wheel_angle]").tolist()
         throttle, brake, steering = values
         # One chained test for the common case; NaN fails every comparison.
         max_steer = self.max_steering_angle

@@ -19,6 +19,8 @@ from numpy.typing import ArrayLike, NDArray
 from sdc_gym.geometry.coarse_frenet import CoarseFrenet
 from sdc_gym.geometry.original_frenet import OriginalFrenet
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
+from sdc_gym.validation.road_geometry import check_loop_points, check_reference_line
+from sdc_gym.validation.text_files import read_text
 
 # The original simulator's start state (middle lane, at rest, facing +x).
 ORIGINAL_START_S = 124.8336
@@ -30,6 +32,10 @@ _SAME_START_M = 0.01  # the coarse getXY of the start within this of it: the ori
 # A loaded map keeps the original's start heading when its road runs this close to +x there
 # (the original map's road heads -0.45 degrees at the start).
 _ORIGINAL_HEADING_TOLERANCE = math.radians(5.0)
+MIN_HIGHWAY_LOOP_M = 200.0  # a shorter loop has no room for traffic (spawn range 200 m)
+MIN_RADIUS_MARGIN_M = 2.0
+"""A map file's smallest radius is the road's width plus this (14 m for 3 x 4 m lanes):
+the lanes' offset lines stay smooth in a right-hand bend (the original's: 114 m)."""
 
 
 class MapFormatError(ValueError):
@@ -127,32 +133,35 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
 
     The smooth reference line goes through the (x, y) columns; s, dx, dy are kept as read
     (the coarse compatibility helpers use them). Raises :class:`MapFormatError` naming the
-    file, line and problem for anything else.
+    file, line and problem for anything else: not UTF-8 text, not 5 numbers a line, s not
+    increasing, (dx, dy) not a unit normal, and a loop that is not closed, is collinear,
+    crosses itself, bends tighter than the road's width plus 2 m or is not 200 m .. 100 km
+    long (:mod:`sdc_gym.validation.road_geometry`).
     """
     path = Path(path)
-    if not path.is_file():
-        raise MapFormatError(f"map file not found: {path}")
+    text = read_text(path, "map file", MapFormatError)
     rows: list[list[float]] = []
-    with path.open(encoding="utf-8") as handle:
-        for line_number, line in enumerate(handle, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            fields = text.replace(",", " ").split()
-            if len(fields) != 5:
-                raise MapFormatError(
-                    f"{path}:{line_number}: expected 5 numbers 'x y s dx dy', "
-                    f"got {len(fields)} field(s): {text!r}"
-                )
-            try:
-                values = [float(value) for value in fields]
-            except ValueError as error:
-                raise MapFormatError(
-                    f"{path}:{line_number}: not a number in {text!r} ({error})"
-                ) from None
-            if not all(np.isfinite(values)):
-                raise MapFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
-            rows.append(values)
+    for line_number, line in enumerate(text.splitlines(), start=1):
+        text_line = line.strip()
+        if not text_line or text_line.startswith("#"):
+            continue
+        fields = text_line.replace(",", " ").split()
+        if len(fields) != 5:
+            hint = (" (4 fields: a track waypoint file x,y,z,yaw? It goes in TrackLoop-v0's "
+                    "'track' key)" if len(fields) == 4 else "")
+            raise MapFormatError(
+                f"{path}:{line_number}: expected 5 numbers 'x y s dx dy', "
+                f"got {len(fields)} field(s): {text_line!r}{hint}"
+            )
+        try:
+            values = [float(value) for value in fields]
+        except ValueError as error:
+            raise MapFormatError(
+                f"{path}:{line_number}: not a number in {text_line!r} ({error})"
+            ) from None
+        if not all(np.isfinite(values)):
+            raise MapFormatError(f"{path}:{line_number}: non-finite value in {text_line!r}")
+        rows.append(values)
     if len(rows) < 4:
         raise MapFormatError(
             f"{path}: a closed highway needs at least 4 waypoints, got {len(rows)}")
@@ -164,10 +173,14 @@ def load_highway_map(path: str | os.PathLike[str], *, lane_count: int = 3,
     if np.any(np.abs(normal_length - 1.0) > 0.01):
         bad = int(np.flatnonzero(np.abs(normal_length - 1.0) > 0.01)[0]) + 1
         raise MapFormatError(f"{path}: (dx, dy) of row {bad} is not a unit normal")
+    check_loop_points(waypoints[:, :2], str(path), MapFormatError,
+                      min_length=MIN_HIGHWAY_LOOP_M)
     try:
         reference = ReferenceLine(waypoints[:, :2])
     except ReferenceLineError as error:
         raise MapFormatError(f"{path}: {error}") from None
+    check_reference_line(reference, str(path), MapFormatError,
+                         min_radius=lane_count * lane_width + MIN_RADIUS_MARGIN_M)
     # The original places the car where the template's coarse getXY puts (s, d) =
     # (124.8336, 6.164833): x = 909.48, y = 1128.67 on the original map. Start at that
     # point, expressed in the exact Frenet frame (s = 124.935, d = 6.098 there), facing +x

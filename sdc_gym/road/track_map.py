@@ -35,12 +35,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.highway_map import MapFormatError
 from sdc_gym.units import KMH_TO_MPS
+from sdc_gym.validation.road_geometry import check_loop_points, check_reference_line
+from sdc_gym.validation.text_files import read_text, read_yaml
 
 # --- Lights (the original simulator; spec: poles about 24 m past their stop lines) ---------
 LIGHT_POLE_OFFSET_M = 24.0
@@ -75,6 +76,10 @@ _MIN_WAYPOINT_SPACING_M = 1e-6
 _MIN_WAYPOINTS = 4
 _WAYPOINT_FIELDS = 4  # x, y, z, yaw
 _IGNORED_EXTRA_FIELDS = 1  # the site file's fifth column
+MIN_TRACK_LOOP_M = 30.0  # the site lot's path is 64.6 m
+MIN_TRACK_RADIUS_M = 2.0
+"""A track file's smallest radius of curvature: below the tightest spot of the recorded
+site path (2.33 m, sampled every 0.5 m), under half the car's turning radius (4.8 m)."""
 
 
 class TrackFormatError(MapFormatError):
@@ -128,6 +133,10 @@ class TrackMap:
         road_half_width_m: how far |d| may go before the car is off the road.
         speed_limit_mps: the stack's speed limit (40 km/h sim, 10 km/h site).
         start_s: where the ego starts along the reference line.
+        waypoint_speeds_mps: (n,) the file's speed per waypoint when it has them
+            (``x,y,z,velocity`` files), else None. The speed limit stays the track's: the
+            capstone's waypoint loader sets every waypoint to its velocity parameter, not
+            to a file's.
     """
 
     name: str
@@ -146,6 +155,7 @@ class TrackMap:
     road_half_width_m: float = SIM_ROAD_HALF_WIDTH_M
     speed_limit_mps: float = SIM_SPEED_LIMIT_MPS
     start_s: float = 0.0
+    waypoint_speeds_mps: NDArray[np.float64] | None = field(default=None, repr=False)
     # Stop lines sorted by s, for next_stop_line (a bisection per physics step).
     _sorted_s: list[float] = field(init=False, repr=False, compare=False)
     _sorted_index: list[int] = field(init=False, repr=False, compare=False)
@@ -221,6 +231,7 @@ class TrackMap:
         speed_limit_mps: float | None = None,
         start_s: float = 0.0,
         light_pole_offset_m: float | None = None,
+        waypoint_speeds_mps: ArrayLike | None = None,
     ) -> TrackMap:
         """Build a track: project the stop lines, place the lights, fill the defaults.
 
@@ -279,6 +290,8 @@ class TrackMap:
             speed_limit_mps=speed_limit_mps if speed_limit_mps is not None
             else (SITE_SPEED_LIMIT_MPS if is_site else SIM_SPEED_LIMIT_MPS),
             start_s=float(start_s),
+            waypoint_speeds_mps=None if waypoint_speeds_mps is None
+            else _read_only(waypoint_speeds_mps),
         )
 
 
@@ -303,42 +316,109 @@ def loop_points(xy: ArrayLike) -> NDArray[np.float64]:
     return points
 
 
-def load_track_waypoints(path: str | os.PathLike[str]) -> NDArray[np.float64]:
-    """Read a waypoint file (``x,y,z,yaw`` per line, a 5th column ignored) as (n, 4).
+@dataclass(frozen=True)
+class TrackFile:
+    """A waypoint file as read: (n, 4) ``x y z yaw`` rows, the file's speeds if it has
+    them (m/s per waypoint), and its format (``"x,y,z,yaw"`` or ``"x,y,z,velocity"``)."""
 
-    Raises :class:`TrackFormatError` naming the file, line and problem: a wrong field
-    count, a field that is not a number, a non-finite value, fewer than 4 waypoints.
+    waypoints: NDArray[np.float64]
+    speeds_mps: NDArray[np.float64] | None
+    format: str
+
+
+def _rows(path: Path) -> list[tuple[int, list[str], str]]:
+    """(line number, fields, text) of the data lines of a waypoint file (UTF-8 text)."""
+    text = read_text(path, "waypoint file", TrackFormatError)
+    rows = []
+    for line_number, line in enumerate(text.splitlines(), start=1):
+        stripped = line.strip()  # also strips the CR of CRLF files
+        if stripped and not stripped.startswith("#"):
+            rows.append((line_number, stripped.replace(",", " ").split(), stripped))
+    return rows
+
+
+def _numbers(path: Path, line_number: int, fields: list[str], text: str) -> list[float]:
+    try:
+        values = [float(value) for value in fields]
+    except ValueError as error:
+        raise TrackFormatError(f"{path}:{line_number}: not a number in {text!r} "
+                               f"({error})") from None
+    if not all(math.isfinite(value) for value in values):
+        raise TrackFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
+    return values
+
+
+def _looks_like_highway_map(rows: NDArray[np.float64]) -> bool:
+    """Rows ``x y s dx dy`` of a highway map: the 3rd column the distance along the points,
+    the 4th and 5th a unit vector across the path."""
+    if rows.shape[1] != 5 or len(rows) < 3:
+        return False
+    along = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(rows[:, :2], axis=0).T))])
+    s = rows[:, 2] - rows[0, 2]
+    unit = np.abs(np.hypot(rows[:, 3], rows[:, 4]) - 1.0) < 0.01
+    return bool(unit.all() and np.all(np.diff(rows[:, 2]) > 0)
+                and np.allclose(s, along, rtol=0.02, atol=1.0))
+
+
+def read_track_file(path: str | os.PathLike[str]) -> TrackFile:
+    """Read a waypoint file; :class:`TrackFormatError` names the file, line and problem.
+
+    Two formats:
+
+    * the course's ``x,y,z,yaw`` (``wp_yaw_const.csv``), with an optional 5th column that
+      is ignored (the site file's constant 12);
+    * Autoware's ``waypoint_maker`` "ver1" (``sim_waypoints.csv``): a first line of three
+      fields ``x,y,z`` (the start; Autoware's loader skips it, as here), then
+      ``x,y,z,velocity`` rows with the velocity in km/h. The yaw of each waypoint is the
+      direction to the next one (the last repeats the one before), as Autoware computes
+      it; the velocities are kept as :attr:`TrackFile.speeds_mps`.
+
+    A highway map (``x y s dx dy``) is recognised and refused: read as a track, its s and
+    dx columns would silently become z and yaw.
     """
     path = Path(path)
-    if not path.is_file():
-        raise TrackFormatError(f"waypoint file not found: {path}")
-    rows: list[list[float]] = []
+    rows = _rows(path)
+    if len(rows) >= 2 and len(rows[0][1]) == 3 and all(len(f) == 4 for _, f, _ in rows[1:]):
+        data = np.asarray([_numbers(path, *row) for row in rows[1:]], dtype=np.float64)
+        if len(data) < _MIN_WAYPOINTS:
+            raise TrackFormatError(f"{path}: a closed track needs at least {_MIN_WAYPOINTS} "
+                                   f"waypoints, got {len(data)}")
+        if np.any(data[:, 3] < 0):
+            bad = rows[1 + int(np.flatnonzero(data[:, 3] < 0)[0])][0]
+            raise TrackFormatError(f"{path}:{bad}: a negative velocity in an x,y,z,velocity "
+                                   "file (km/h)")
+        step = np.diff(data[:, :2], axis=0)
+        yaw = np.arctan2(step[:, 1], step[:, 0])
+        yaw = np.append(yaw, yaw[-1])
+        waypoints = np.column_stack([data[:, :3], yaw])
+        return TrackFile(waypoints, data[:, 3] * KMH_TO_MPS, "x,y,z,velocity")
     allowed = (_WAYPOINT_FIELDS, _WAYPOINT_FIELDS + _IGNORED_EXTRA_FIELDS)
-    with path.open(encoding="utf-8") as handle:
-        for line_number, line in enumerate(handle, start=1):
-            text = line.strip()  # also strips the CR of CRLF files
-            if not text or text.startswith("#"):
-                continue
-            fields = text.replace(",", " ").split()
-            if len(fields) not in allowed:
-                raise TrackFormatError(
-                    f"{path}:{line_number}: expected 4 fields 'x,y,z,yaw' (a 5th is "
-                    f"ignored), got {len(fields)} field(s): {text!r}"
-                )
-            try:
-                values = [float(value) for value in fields[:_WAYPOINT_FIELDS]]
-            except ValueError as error:
-                raise TrackFormatError(
-                    f"{path}:{line_number}: not a number in {text!r} ({error})"
-                ) from None
-            if not all(math.isfinite(value) for value in values):
-                raise TrackFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
-            rows.append(values)
-    if len(rows) < _MIN_WAYPOINTS:
+    for line_number, fields, text in rows:
+        if len(fields) not in allowed:
+            raise TrackFormatError(
+                f"{path}:{line_number}: expected 4 fields 'x,y,z,yaw' (a 5th is ignored; or "
+                f"a first line 'x,y,z' then 'x,y,z,velocity' lines), got {len(fields)} "
+                f"field(s): {text!r}")
+    if len({len(fields) for _, fields, _ in rows}) > 1:
+        line_number = next(n for n, f, _ in rows if len(f) != len(rows[0][1]))
+        raise TrackFormatError(f"{path}:{line_number}: {len(rows[0][1])} fields on the first "
+                               f"line, another count here: every line has the same fields")
+    data = np.asarray([_numbers(path, *row) for row in rows], dtype=np.float64)
+    if len(data) < _MIN_WAYPOINTS:
         raise TrackFormatError(
-            f"{path}: a closed track needs at least {_MIN_WAYPOINTS} waypoints, got {len(rows)}"
+            f"{path}: a closed track needs at least {_MIN_WAYPOINTS} waypoints, got {len(data)}"
         )
-    return np.asarray(rows, dtype=np.float64)
+    if _looks_like_highway_map(data):
+        raise TrackFormatError(
+            f"{path}: this is a highway map (x y s dx dy: the 3rd column is the distance along "
+            "the points, the 4th and 5th a unit normal), not a track waypoint file (x,y,z,yaw); "
+            "give it to HighwayLoop-v0's 'map' key")
+    return TrackFile(data[:, :_WAYPOINT_FIELDS].copy(), None, "x,y,z,yaw")
+
+
+def load_track_waypoints(path: str | os.PathLike[str]) -> NDArray[np.float64]:
+    """The (n, 4) ``x y z yaw`` waypoints of a file (see :func:`read_track_file`)."""
+    return read_track_file(path).waypoints
 
 
 def _number(value: Any) -> bool:
@@ -352,12 +432,7 @@ def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
     the wrong type (or the YAML error).
     """
     path = Path(path)
-    if not path.is_file():
-        raise TrackFormatError(f"light config not found: {path}")
-    try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except yaml.YAMLError as error:
-        raise TrackFormatError(f"{path}: not valid YAML ({error})") from None
+    data = read_yaml(path, "light config", TrackFormatError)
     if not isinstance(data, dict):
         raise TrackFormatError(f"{path}: expected a mapping with keys camera_info, "
                                f"stop_line_positions[, is_site], got {type(data).__name__}")
@@ -421,20 +496,28 @@ def load_track(
     Without a light config the track has no lights and the simulator's defaults (800 x 600
     camera, 40 km/h). ``name`` defaults to the waypoint file's path.
     """
-    waypoints = load_track_waypoints(waypoints_path)
+    track_file = read_track_file(waypoints_path)
+    waypoints = track_file.waypoints
     config = None if light_config_path is None else load_light_config(light_config_path)
+    points = loop_points(waypoints[:, :2])
+    check_loop_points(points, str(waypoints_path), TrackFormatError,
+                      min_length=MIN_TRACK_LOOP_M)
     try:
-        reference = ReferenceLine(loop_points(waypoints[:, :2]))
+        reference = ReferenceLine(points)
     except ReferenceLineError as error:
         raise TrackFormatError(f"{waypoints_path}: {error}") from None
+    check_reference_line(reference, str(waypoints_path), TrackFormatError,
+                         min_radius=MIN_TRACK_RADIUS_M)
     if config is None:
         return TrackMap.from_waypoints(name or str(waypoints_path), waypoints,
-                                       reference=reference)
+                                       reference=reference,
+                                       waypoint_speeds_mps=track_file.speeds_mps)
     return TrackMap.from_waypoints(
         name or str(waypoints_path),
         waypoints,
         config.stop_line_positions,
         reference=reference,
+        waypoint_speeds_mps=track_file.speeds_mps,
         is_site=config.is_site,
         image_width=config.image_width,
         image_height=config.image_height,

@@ -16,8 +16,12 @@ telemetry) and ``straight`` (a few points ahead along the heading; no map, quick
 start). ``--fault`` makes it misbehave after ``--after`` good replies: ``die`` (exit with
 code 3), ``malformed`` (broken JSON), ``empty`` (no points), ``nan`` (a ``NaN`` literal),
 ``null`` (a ``null`` point, as nlohmann::json prints NaN), ``stall`` (never answers),
-``manual`` (answers telemetry with ``42["manual",{}]``); ``never_listen`` runs (with a
-child process) without ever listening, ``crash_at_start`` exits with code 2 at once.
+``manual`` (answers telemetry with ``42["manual",{}]``), ``flood`` (prints random bytes
+as fast as it can, never answering); ``never_listen`` runs (with a child process) without
+ever listening, ``crash_at_start`` exits with code 2 at once. ``--spawn`` starts a process
+that escapes the planner's process group before serving: ``setsid`` (a child in a session
+of its own) or ``daemon`` (a grandchild whose parent, in a new session, exits at once: an
+orphan, as a daemonizing planner leaves); it prints ``spawned PID``.
 """
 
 from __future__ import annotations
@@ -32,7 +36,9 @@ import time
 from typing import Any
 
 FAULTS = ("none", "die", "malformed", "empty", "nan", "null", "stall", "manual",
-          "never_listen", "crash_at_start")
+          "flood", "never_listen", "crash_at_start")
+SPAWNS = ("none", "setsid", "daemon")
+SLEEPER = "import time; time.sleep(3600)"
 MANUAL_REPLY = '42["manual",{}]'
 STRAIGHT_SPEED_MPS = 10.0
 DT = 0.02
@@ -144,7 +150,24 @@ class Planner:
             return control_message(next_x, [*next_y[:2], None, *next_y[3:]])  # null
         if fault == "manual":
             return MANUAL_REPLY
+        if fault == "flood":
+            garbage = os.urandom(1 << 16)
+            while True:
+                sys.stdout.buffer.write(garbage)
         raise ValueError(fault)
+
+
+def spawn_escaping_process(kind: str) -> int:
+    """A process outside the planner's process group (see the module docstring); its pid."""
+    if kind == "setsid":
+        return subprocess.Popen([sys.executable, "-c", SLEEPER], start_new_session=True).pid
+    # daemon: the middle process starts the sleeper, prints its pid, and exits.
+    middle = subprocess.run(
+        [sys.executable, "-c", "import subprocess, sys; print(subprocess.Popen("
+         f"[sys.executable, '-c', {SLEEPER!r}], start_new_session=True, "
+         "stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL).pid)"],
+        capture_output=True, text=True, check=True, start_new_session=True)
+    return int(middle.stdout)
 
 
 def serve(planner: Planner, port: int) -> None:
@@ -173,7 +196,10 @@ def main() -> None:
     parser.add_argument("--target-mph", type=float, default=None)
     parser.add_argument("--fault", choices=FAULTS, default="none")
     parser.add_argument("--after", type=int, default=0)
+    parser.add_argument("--spawn", choices=SPAWNS, default="none")
     args = parser.parse_args()
+    if args.spawn != "none":
+        print(f"spawned {spawn_escaping_process(args.spawn)}", flush=True)
     if args.fault == "crash_at_start":
         print("terminate called after throwing an instance of 'std::runtime_error'",
               flush=True)

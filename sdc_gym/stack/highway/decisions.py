@@ -37,6 +37,7 @@ from sdc_gym.stack.highway import behavior_kernel as kernel
 from sdc_gym.stack.highway.behavior import MAX_BRAKING, NORMAL_ACCELERATION, BehaviorDecision
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters, shield_array, views_of
 from sdc_gym.stack.highway.world_model import WorldModel
+from sdc_gym.validation.actions import discrete_index, real_array
 
 LANE_MOVES = ("left", "keep", "right")
 SPEED_MOVES = ("cruise", "hold", "slow")
@@ -60,19 +61,16 @@ class HighwayDecision:
     @classmethod
     def from_index(cls, index: int) -> HighwayDecision:
         """Decode a ``Discrete(9)`` action (see the module docstring)."""
-        if isinstance(index, (bool, np.bool_)) or not isinstance(index, (int, np.integer)):
-            raise ValueError(f"a discrete highway decision is an int in [0, 9), got {index!r}")
-        if not 0 <= index < len(ACTION_NAMES):
-            raise ValueError(f"action {index} out of range; valid: 0..8 = {list(ACTION_NAMES)}")
-        lane, speed = divmod(int(index), len(SPEED_MOVES))
+        index = discrete_index(index, len(ACTION_NAMES), ACTION_NAMES)
+        lane, speed = divmod(index, len(SPEED_MOVES))
         return cls(lane - 1, SPEED_MOVES[speed])
 
     @classmethod
     def from_vector(cls, vector: ArrayLike, cruise_speed: float = CRUISE_SPEED_MPS
                     ) -> HighwayDecision:
         """Decode a continuous ``Box(-1, 1, (2,))`` action (see the module docstring)."""
-        values = np.asarray(vector, dtype=np.float64).reshape(-1)
-        if values.shape != (2,) or not np.all(np.isfinite(values)):
+        values = real_array(vector, (2,), "a continuous highway decision", "(lane, speed)")
+        if not np.all(np.isfinite(values)):
             raise ValueError(f"a continuous highway decision is 2 finite numbers in [-1, 1] "
                              f"(lane, speed), got {np.asarray(vector).tolist()!r}")
         if np.any(np.abs(values) > 1.0 + 1e-6):

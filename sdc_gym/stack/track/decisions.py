@@ -39,6 +39,7 @@ from sdc_gym.stack.track.behavior import (
     TrackBehaviorDecision,
     TrackSituation,
 )
+from sdc_gym.validation.actions import discrete_index, real_array
 
 TRACK_ACTION_NAMES = ("go", "go_75", "go_50", "stop")
 SPEED_FRACTIONS = (1.0, 0.75, 0.5, 1.0)
@@ -52,22 +53,16 @@ def action_decision(action: Any, situation: TrackSituation, continuous: bool
     """The behavior decision an action stands for in ``situation``."""
     cruise = max(situation.speed_limit_mps - DEFAULT_SPEED_MARGIN_MPS, 0.0)
     if continuous:
-        values = np.asarray(action, dtype=np.float64).reshape(-1)
-        if values.shape != (2,) or not np.all(np.isfinite(values)) \
-                or np.any(np.abs(values) > 1.0 + 1e-6):
+        values = real_array(action, (2,), "a continuous track decision", "(speed, stop)")
+        if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1.0 + 1e-6):
             raise ValueError(f"a continuous track decision is 2 finite numbers in [-1, 1] "
                              f"(speed, stop), got {np.asarray(action).tolist()!r}")
         speed = 0.5 * (float(values[0]) + 1.0) * cruise
         stop = float(values[1]) > 0.0
         name = "stop" if stop else "go"
     else:
-        if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
-            action = action.reshape(()).item()
-        if isinstance(action, (bool, np.bool_)) or not isinstance(action, (int, np.integer)) \
-                or not 0 <= action < len(TRACK_ACTION_NAMES):
-            raise ValueError(f"track action {action!r} invalid; valid: 0..3 = "
-                             f"{list(TRACK_ACTION_NAMES)}")
-        name = TRACK_ACTION_NAMES[int(action)]
+        action = discrete_index(action, len(TRACK_ACTION_NAMES), TRACK_ACTION_NAMES)
+        name = TRACK_ACTION_NAMES[action]
         speed = SPEED_FRACTIONS[int(action)] * cruise
         stop = name == "stop"
     waypoint = situation.stop_waypoint if stop else -1

@@ -1,0 +1,210 @@
+"""stable-baselines3 models and replay buffers written atomically, and the checkpoint to
+resume from.
+
+SB3 writes ``model.save(path)`` straight into ``path``: a run killed while it saves leaves
+a torn zip (``--resume`` then failed with "No data found in the saved file"). Here every
+file goes to a temporary file in the same folder, is flushed to disk (``fsync``) and
+renamed over the target (``os.replace``, atomic on POSIX), so a file is either the old one
+or the complete new one. A checkpoint's replay buffer is written *before* its model: a
+model checkpoint on disk always had its buffer written first.
+
+:func:`resume_point` picks the newest checkpoint that loads: a torn one (from a run
+before this, a full disk, a copy cut short) is skipped with a note saying why, and for an
+off-policy algorithm its replay buffer must be there too; a model whose buffer is missing
+is refused with a clear message unless the caller allows resuming without it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import tempfile
+import zipfile
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+CHECKPOINT_SUFFIX = "_steps.zip"
+
+
+@contextlib.contextmanager
+def atomic_file(path: Path) -> Iterator[IO[bytes]]:
+    """A binary file handle whose content replaces ``path`` atomically when the block ends
+    without an exception (temporary file in the same folder, fsync, ``os.replace``, fsync
+    of the folder); on an exception ``path`` is left as it was."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    descriptor, temporary = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.",
+                                             suffix=".tmp")
+    try:
+        with open(descriptor, "wb") as handle:  # a BufferedWriter, as SB3 requires
+            yield handle
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        Path(temporary).unlink(missing_ok=True)
+        raise
+    try:
+        folder = os.open(path.parent, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(folder)  # the rename itself on disk
+    except OSError:
+        pass
+    finally:
+        os.close(folder)
+
+
+def save_model(model: Any, path: Path) -> None:
+    """``model.save`` to ``path`` (a ``.zip``), atomically."""
+    with atomic_file(path) as handle:
+        model.save(handle)
+
+
+def save_replay_buffer(model: Any, path: Path) -> None:
+    """``model.save_replay_buffer`` to ``path`` (a ``.pkl``), atomically."""
+    with atomic_file(path) as handle:
+        model.save_replay_buffer(handle)
+
+
+def checkpoint_steps(path: Path) -> int | None:
+    """The timesteps in a checkpoint's name ``<prefix>_<steps>_steps.zip``, else None."""
+    if not path.name.endswith(CHECKPOINT_SUFFIX):
+        return None
+    steps = path.name[:-len(CHECKPOINT_SUFFIX)].rsplit("_", 1)[-1]
+    return int(steps) if steps.isdigit() else None
+
+
+def buffer_path(checkpoints: Path, prefix: str, steps: int) -> Path:
+    """Where :class:`AtomicCheckpointCallback` puts the replay buffer of a checkpoint."""
+    return checkpoints / f"{prefix}_replay_buffer_{steps}_steps.pkl"
+
+
+def model_problem(path: Path) -> str | None:
+    """Why the model zip cannot be loaded (``None``: it is whole): SB3's files are zips
+    with a ``data`` member, every member's CRC intact."""
+    try:
+        with zipfile.ZipFile(path) as archive:
+            if "data" not in archive.namelist():
+                # A cut-short SB3 zip can end inside one of its members (policy.pth is a
+                # zip itself), which then reads as a zip without SB3's 'data'.
+                return "not a whole SB3 model zip (no 'data' member: cut short?)"
+            bad = archive.testzip()
+            return None if bad is None else f"member {bad!r} is corrupt"
+    except (zipfile.BadZipFile, OSError, EOFError) as error:
+        return f"not a whole SB3 model zip ({error})"
+
+
+def buffer_problem(path: Path) -> str | None:
+    """Why the replay buffer pickle cannot be loaded (``None``: it loads)."""
+    try:
+        with path.open("rb") as handle:
+            pickle.load(handle)
+    except FileNotFoundError:
+        return "missing"
+    except Exception as error:  # a torn pickle raises any of several errors
+        return f"torn ({type(error).__name__}: {error})"
+    return None
+
+
+@dataclass(frozen=True)
+class ResumePoint:
+    """The checkpoint to resume from, its replay buffer (or None), and what was skipped."""
+
+    model: Path
+    steps: int
+    replay_buffer: Path | None
+    notes: tuple[str, ...]
+
+
+def resume_point(checkpoints: Path, prefix: str, off_policy: bool, *,
+                 without_buffer: bool = False,
+                 check_buffer: Callable[[Path], str | None] = buffer_problem
+                 ) -> ResumePoint | None:
+    """The newest checkpoint in ``checkpoints`` that can be resumed (see the module
+    docstring); ``None`` when there is no checkpoint at all.
+
+    Raises ``ValueError`` when checkpoints exist but none can be resumed: every model is
+    torn, or (off-policy, without ``without_buffer``) every whole model lacks a loadable
+    replay buffer; the message names each file and its problem.
+    """
+    found = sorted(((steps, path) for path in checkpoints.glob(f"{prefix}_*{CHECKPOINT_SUFFIX}")
+                    if (steps := checkpoint_steps(path)) is not None), reverse=True)
+    if not found:
+        return None
+    notes: list[str] = []
+    missing_buffers: list[Path] = []
+    for steps, path in found:
+        problem = model_problem(path)
+        if problem is not None:
+            notes.append(f"skipped {path.name}: {problem}")
+            continue
+        if not off_policy:
+            return ResumePoint(path, steps, None, tuple(notes))
+        buffer = buffer_path(checkpoints, prefix, steps)
+        buffer_issue = check_buffer(buffer)
+        if buffer_issue is None:
+            return ResumePoint(path, steps, buffer, tuple(notes))
+        if without_buffer:
+            notes.append(f"{path.name}: its replay buffer {buffer.name} is {buffer_issue}; "
+                         "resuming with an empty replay buffer (--resume-without-buffer)")
+            return ResumePoint(path, steps, None, tuple(notes))
+        notes.append(f"skipped {path.name}: its replay buffer {buffer.name} is {buffer_issue}")
+        missing_buffers.append(path)
+    detail = "; ".join(notes)
+    if missing_buffers:
+        raise ValueError(f"no checkpoint in {checkpoints} can be resumed with its replay buffer "
+                         f"({detail}). Resuming without it would start from an empty buffer: "
+                         "pass --resume-without-buffer to do that anyway")
+    raise ValueError(f"no checkpoint in {checkpoints} can be loaded ({detail})")
+
+
+def checkpoint_callback(save_freq: int, folder: Path, prefix: str,
+                        with_replay_buffer: bool) -> Any:
+    """An SB3 ``CheckpointCallback`` that writes atomically, the buffer before the model."""
+    from stable_baselines3.common.callbacks import CheckpointCallback
+
+    class AtomicCheckpointCallback(CheckpointCallback):
+        def _on_step(self) -> bool:
+            if self.n_calls % self.save_freq == 0:
+                if (self.save_replay_buffer
+                        and getattr(self.model, "replay_buffer", None) is not None):
+                    save_replay_buffer(self.model, buffer_path(folder, prefix,
+                                                               self.num_timesteps))
+                save_model(self.model, Path(self._checkpoint_path(extension="zip")))
+            return True
+
+    return AtomicCheckpointCallback(save_freq, str(folder), name_prefix=prefix,
+                                    save_replay_buffer=with_replay_buffer)
+
+
+def eval_callback(eval_env: Any, folder: Path, **kwargs: Any) -> Any:
+    """An SB3 ``EvalCallback`` writing ``best_model.zip`` and ``evaluations.npz`` in
+    ``folder``, each atomically."""
+    from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+
+    class SaveBest(BaseCallback):
+        def _on_step(self) -> bool:
+            save_model(self.model, folder / "best_model.zip")
+            return True
+
+    class AtomicEvalCallback(EvalCallback):
+        """SB3 saves the evaluations with ``np.savez`` to ``log_path``: a temporary name
+        here, renamed over ``evaluations.npz`` after each evaluation."""
+
+        def _on_step(self) -> bool:
+            keep_going = super()._on_step()
+            written = Path(f"{self.log_path}.npz")
+            if written.is_file():  # complete: np.savez has returned
+                with written.open("rb+") as handle:
+                    os.fsync(handle.fileno())
+                os.replace(written, folder / "evaluations.npz")
+            return keep_going
+
+    callback = AtomicEvalCallback(eval_env, callback_on_new_best=SaveBest(),
+                                  log_path=str(folder), best_model_save_path=None, **kwargs)
+    callback.log_path = str(folder / ".evaluations.partial")
+    return callback

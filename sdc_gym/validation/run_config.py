@@ -1,0 +1,152 @@
+"""train.py's run config: every value checked, hyperparameters against the algorithm.
+
+A run config (YAML, ``train.py --config``) has the keys of :data:`RUN_RULES` plus ``env``
+(a registered id) and ``config`` (its env config, a mapping); ``eval`` is a mapping with
+the keys of :data:`EVAL_DEFAULTS`. Hyperparameters (``configs/hyperparams/<algo>.yaml``
+and ``--hp KEY=VALUE``) must be parameters of the stable-baselines3 algorithm's
+constructor, of the type its annotation says (a float where it takes ``float | Schedule``:
+YAML cannot give a function), finite, and in range for the common ones
+(:data:`HYPERPARAM_RULES`). Errors are :class:`~sdc_gym.config.ConfigError` naming the
+key, the value and what is valid.
+"""
+
+from __future__ import annotations
+
+import collections.abc
+import inspect
+import sys
+import types
+import typing
+from collections.abc import Mapping
+from typing import Any, Final
+
+from sdc_gym.config import ConfigError
+from sdc_gym.validation.rules import Choice, Number, Rule, check_finite, check_value, is_real
+
+ALGORITHMS: Final = ("ppo", "dqn", "sac", "a2c")
+EVAL_DEFAULTS: Final = {"every": 50_000, "episodes": 4, "seed": 10_000}
+SEED_LIMIT: Final = 2**32 - 1  # numpy's and SB3's seeds are 32-bit
+MAX_N_ENVS: Final = 1024  # processes or a batch; memory and time bound it long before
+MAX_TIMESTEPS: Final = 10**12
+RUN_RULES: Final[dict[str, Rule]] = {
+    "algo": Choice(ALGORITHMS),
+    "timesteps": Number(1, MAX_TIMESTEPS, integer=True, unit="env steps"),
+    "n_envs": Number(1, MAX_N_ENVS, integer=True, unit="parallel envs"),
+    "seed": Number(0, SEED_LIMIT, integer=True),
+    "checkpoint_every": Number(1, MAX_TIMESTEPS, integer=True, unit="env steps"),
+    "eval.every": Number(0, MAX_TIMESTEPS, integer=True, unit="env steps; 0: no evaluation"),
+    "eval.episodes": Number(1, 10_000, integer=True),
+    "eval.seed": Number(0, SEED_LIMIT, integer=True, unit="the first held-out seed"),
+}
+HYPERPARAM_RULES: Final[dict[str, Rule]] = {
+    "learning_rate": Number(0.0, 1.0, low_open=True),
+    "gamma": Number(0.0, 1.0),
+    "gae_lambda": Number(0.0, 1.0),
+    "tau": Number(0.0, 1.0),
+    "batch_size": Number(1, 10**7, integer=True),
+    "n_steps": Number(1, 10**7, integer=True),
+    "n_epochs": Number(1, 10**4, integer=True),
+    "buffer_size": Number(1, 10**8, integer=True, why="the replay buffer is held in memory"),
+    "learning_starts": Number(0, integer=True),
+    "exploration_fraction": Number(0.0, 1.0),
+    "exploration_initial_eps": Number(0.0, 1.0),
+    "exploration_final_eps": Number(0.0, 1.0),
+    "target_update_interval": Number(1, integer=True),
+    "gradient_steps": Number(-1, integer=True, why="-1: as many as env steps"),
+    "clip_range": Number(0.0, low_open=True),
+    "vf_coef": Number(0.0),
+    "max_grad_norm": Number(0.0, low_open=True),
+}
+NOT_HYPERPARAMETERS: Final = ("self", "env", "tensorboard_log", "seed", "verbose",
+                              "_init_setup_model")
+"""Constructor parameters train.py sets itself."""
+
+
+def check_run_config(config: Mapping[str, Any], owner: str, registered: Any) -> None:
+    """Check a resolved run config; ``registered(env_id)`` tells whether an id exists."""
+    env_id = config.get("env")
+    if not isinstance(env_id, str) or not registered(env_id):
+        raise ConfigError(f"{owner}: config key 'env' must be a registered env id (e.g. "
+                          f"sdc_gym/HighwayLoopBehavior-v0), got {env_id!r}")
+    if not isinstance(config.get("config"), Mapping):
+        raise ConfigError(f"{owner}: config key 'config' must be a mapping of {env_id} "
+                          f"config keys, got {config.get('config')!r}")
+    evaluation = config.get("eval")
+    if not isinstance(evaluation, Mapping) or set(evaluation) - set(EVAL_DEFAULTS):
+        raise ConfigError(f"{owner}: config key 'eval' must be a mapping with keys of "
+                          f"{sorted(EVAL_DEFAULTS)}, got {evaluation!r}")
+    for key, rule in RUN_RULES.items():
+        node: Any = config
+        for part in key.split("."):
+            node = node.get(part) if isinstance(node, Mapping) else None
+        check_value(rule, node, owner, key)
+
+
+def _hint(algorithm: type, name: str) -> Any:
+    """The annotation of ``algorithm.__init__``'s parameter ``name`` (``Any`` if unknown)."""
+    annotation = inspect.signature(algorithm.__init__).parameters[name].annotation
+    if annotation is inspect.Parameter.empty:
+        return Any
+    if isinstance(annotation, str):  # postponed annotations: evaluate in SB3's module
+        try:
+            # SB3's own annotation text (never user input), in SB3's module namespace.
+            return eval(annotation, vars(sys.modules[algorithm.__module__]))
+        except Exception:  # a name only imported for type checking
+            return Any
+    return annotation
+
+
+def matches(value: Any, hint: Any) -> bool:
+    """Whether a YAML value (None, bool, int, float, str, list, dict) fits ``hint``."""
+    origin = typing.get_origin(hint)
+    if hint is Any:
+        return True
+    if origin in (typing.Union, types.UnionType):
+        return any(matches(value, arg) for arg in typing.get_args(hint))
+    if hint is None or hint is type(None):
+        return value is None
+    if hint is bool:
+        return isinstance(value, bool)
+    if hint is int:
+        return isinstance(value, int) and not isinstance(value, bool)
+    if hint is float:
+        return is_real(value)
+    if hint is str:
+        return isinstance(value, str)
+    if origin is type or origin is collections.abc.Callable or hint is type:
+        return False  # YAML gives no classes and no functions
+    if origin is tuple:
+        args = typing.get_args(hint)
+        return (isinstance(value, list | tuple) and len(value) == len(args)
+                and all(matches(item, arg) for item, arg in zip(value, args, strict=True)))
+    if origin in (list, collections.abc.Sequence) or hint is list:
+        return isinstance(value, list)
+    if origin in (dict, collections.abc.Mapping) or hint is dict:
+        return isinstance(value, dict)
+    if isinstance(hint, type):
+        return isinstance(value, hint)
+    return True  # a form we cannot judge: the algorithm checks it
+
+
+def _describe(hint: Any) -> str:
+    text = str(hint).replace("typing.", "").replace("collections.abc.Callable[[float], float]",
+                                                      "Schedule")
+    return text.replace("<class '", "").replace("'>", "")
+
+
+def check_hyperparams(algorithm: type, hyperparams: Mapping[str, Any], owner: str) -> None:
+    """Every hyperparameter a constructor parameter of ``algorithm``, of its annotated type,
+    finite, and in :data:`HYPERPARAM_RULES`'s range."""
+    parameters = [name for name in inspect.signature(algorithm.__init__).parameters
+                  if name not in NOT_HYPERPARAMETERS]
+    for key, value in hyperparams.items():
+        if key not in parameters:
+            raise ConfigError(f"{owner}: unknown hyperparameter {key!r} for "
+                              f"{algorithm.__name__}; valid: {', '.join(parameters)}")
+        hint = _hint(algorithm, key)
+        if not matches(value, hint):
+            raise ConfigError(f"{owner}: hyperparameter {key!r} of {algorithm.__name__} must "
+                              f"be {_describe(hint)}, got {value!r} ({type(value).__name__})")
+        if key in HYPERPARAM_RULES and is_real(value):
+            check_value(HYPERPARAM_RULES[key], value, owner, key)
+    check_finite(dict(hyperparams), owner)
