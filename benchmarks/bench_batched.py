@@ -1,9 +1,15 @@
 """Throughput of the natively batched envs against the single env, measured in one run.
 
     python benchmarks/bench_batched.py [--steps 2000] [--envs 1 8 64 256 1024] [--ppo-steps 16384]
+    python benchmarks/bench_batched.py --reference /work/ref_pre15 --rounds 3 --only-single
 
 Prints, with the machine's load (other jobs skew absolute numbers; ratios measured side
 by side in the same run stay meaningful):
+
+* with ``--reference TREE`` (another code tree with its own ``.venv``, e.g. the code before
+  the batch work): the single env's rates of ``single_env_rates.py`` (random behavior
+  steps, lane keeping, an FSM lap) in this tree and in ``TREE``, each in a fresh process,
+  the two trees alternating for ``--rounds`` rounds, best of the rounds, and their ratio;
 
 * ``HighwayLoopBehavior-v0`` env steps/s with random actions: the single env
   (``gym.make``) and the batch (``gym.make_vec(..., vectorization_mode=
@@ -20,9 +26,12 @@ by side in the same run stay meaningful):
 from __future__ import annotations
 
 import argparse
+import json
 import os
+import subprocess
 import time
 import warnings
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -31,6 +40,8 @@ from bench_behavior import PPO_SETTINGS, ppo_samples_per_second
 import sdc_gym  # noqa: F401
 
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
+HERE = Path(__file__).resolve().parent
+SINGLE_TASKS = {"behavior": 3000, "lane_keeping": 3000, "fsm_lap": 1}
 
 
 def load() -> str:
@@ -127,6 +138,42 @@ def decision_kernel_ms(cars: int, repeats: int = 30) -> float:
     return (time.perf_counter() - started) / repeats * 1e3
 
 
+def single_rate(tree: Path, task: str, size: int) -> dict[str, float]:
+    """``single_env_rates.py TASK`` run by ``tree``'s own interpreter (its ``agents``)."""
+    python = tree / ".venv" / "bin" / "python"
+    if not python.exists():
+        raise SystemExit(f"--reference {tree}: no interpreter at {python}")
+    done = subprocess.run([str(python), str(HERE / "single_env_rates.py"), task,
+                           "--size", str(size), "--root", str(tree)], cwd=tree,
+                          capture_output=True, text=True, check=False)
+    if done.returncode:
+        raise SystemExit(f"single_env_rates.py {task} in {tree} failed:\n{done.stderr}")
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def compare_single(reference: Path, rounds: int, scale: float) -> None:
+    """This tree's single env against ``reference``'s, alternating, best of ``rounds``."""
+    ours_tree = HERE.parent
+    print(f"single env, this tree ({ours_tree}) against {reference}; best of {rounds} "
+          f"rounds, trees alternating")
+    for task, size in SINGLE_TASKS.items():
+        size = max(1, round(size * scale))
+        ours: list[dict[str, float]] = []
+        theirs: list[dict[str, float]] = []
+        for index in range(rounds):
+            order = [(ours_tree, ours), (reference, theirs)]
+            for tree, results in order if index % 2 == 0 else order[::-1]:
+                results.append(single_rate(tree, task, size))
+        lower_is_better = task == "fsm_lap"
+        pick = min if lower_is_better else max
+        mine, old = pick(r["rate"] for r in ours), pick(r["rate"] for r in theirs)
+        ratio = old / mine if lower_is_better else mine / old
+        print(f"  {task:13s} ours {mine:9.2f}  reference {old:9.2f}  {ours[0]['unit']:22s} "
+              f"speed ratio {ratio:5.2f}x   first step after start: ours "
+              f"{min(r['warm_s'] for r in ours):.2f} s, reference "
+              f"{min(r['warm_s'] for r in theirs):.2f} s   load {load()}", flush=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -139,9 +186,20 @@ def main() -> None:
     parser.add_argument("--cars", type=int, nargs="+", default=[12, 100, 200, 500])
     parser.add_argument("--sim-seconds", type=float, default=60.0)
     parser.add_argument("--skip-ppo", action="store_true")
+    parser.add_argument("--reference", type=Path, default=None,
+                        help="another code tree (with .venv) to compare the single env with")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of --reference")
+    parser.add_argument("--single-scale", type=float, default=1.0,
+                        help="scales the steps / laps of the --reference comparison")
+    parser.add_argument("--only-single", action="store_true",
+                        help="only the --reference comparison")
     args = parser.parse_args()
     warnings.filterwarnings("ignore")
     print(f"load average at start: {load()} (cores: {os.cpu_count()}, numpy {np.__version__})")
+    if args.reference is not None:
+        compare_single(args.reference.resolve(), args.rounds, args.single_scale)
+    if args.only_single:
+        return
 
     single = single_steps_per_second(BEHAVIOR, args.steps)
     print(f"HighwayLoopBehavior-v0 single env:        {single:9.0f} env steps/s")

@@ -4,7 +4,7 @@ At a decision every car of those envs gets, in this order (see
 :mod:`sdc_gym.traffic.highway_traffic` for the rules):
 
 1. finished lane changes free their origin lane;
-2. cars beyond ``spawn_range`` are recycled (:func:`sdc_gym.traffic.placement.recycle`);
+2. cars beyond ``spawn_range`` are recycled (:func:`sdc_gym.traffic.placement.recycle_rows`);
 3. the leader and follower of every car in every lane (:mod:`sdc_gym.traffic.leaders`),
    and the bumper gaps to them along the follower's lane;
 4. IDM accelerations in every lane (as if there), with the leader over the lane(s) the car
@@ -65,7 +65,7 @@ from sdc_gym.traffic.kinematics import (
     interp,
 )
 from sdc_gym.traffic.leaders import nearest_objects
-from sdc_gym.traffic.placement import recycle
+from sdc_gym.traffic.placement import recycle_rows
 from sdc_gym.traffic.state import IDLE, NEVER, TrafficState
 
 # The kernels take the batch (sdc_gym.traffic.batch.TrafficBatch, which imports them) for
@@ -417,10 +417,9 @@ def decide(batch: TrafficBatch, rows: NDArray[np.bool_], end: IntArray, step0: I
     ratio, candidates = batch.scratch_ratio, batch.scratch_candidates
     if begin_decisions(cf, ci, ei, ef, rows, end, step0, ego_s, ego_d, ego_speed,
                        batch.decision_constants, ratio, candidates):
-        for env in np.flatnonzero(candidates[:, 0] >= 0).tolist():
-            if recycle(batch, st, env, candidates[env], batch.rngs[env]):
-                # Cars moved: their speed ratios anew (the same operations).
-                ratio[env, :-1] = np.maximum(st.speed[env], 0.0) / st.desired[env]
+        recycle_rows(cf, ci, ei, ef, batch.placement_constants, batch.geometry.kappa_grid,
+                     batch.geometry.kappa_table, batch.type_cdf, batch.respawn_draws,
+                     batch.lanes, candidates, batch.rng_pointers, ratio)
     free = ratio ** batch.config.idm.delta
     finish_decisions(cf, ci, ei, ef, rows, batch.decision_constants,
                      batch.geometry.kappa_grid, batch.geometry.kappa_table, free,

@@ -151,15 +151,23 @@ def choice(rng: np.random.Generator, cdf: FloatArray) -> int:
     return int(cdf.searchsorted(rng.random(), side="right"))
 
 
-def recycle(batch: TrafficBatch, st: TrafficState, r: int, candidates: IntArray,
-            rng: np.random.Generator) -> bool:
-    """Respawn row ``r``'s ``candidates`` (cars beyond ``spawn_range``, the farthest
-    first; :func:`~sdc_gym.traffic.decisions.begin_decisions` picks them), drawing from
-    ``rng``: :func:`recycle_row`. Returns whether any car moved."""
-    return recycle_row(st.car_floats, st.car_ints, st.env_ints, st.env_floats,
-                       batch.placement_constants, batch.geometry.kappa_grid,
-                       batch.geometry.kappa_table, batch.type_cdf, batch.respawn_draws,
-                       batch.lanes, r, candidates, batch.rng_pointers[r])
+@njit(cache=True)
+def recycle_rows(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
+                 constants: np.ndarray, kappa_grid: np.ndarray, kappa_table: np.ndarray,
+                 type_cdf: np.ndarray, bands: np.ndarray, lanes: int, candidates: np.ndarray,
+                 rngs: np.ndarray, ratio: np.ndarray) -> None:
+    """Respawn every row's ``candidates`` (cars beyond ``spawn_range``, the farthest
+    first, -1 padded; :func:`~sdc_gym.traffic.decisions.begin_decisions` picks them),
+    each row drawing from its own generator (``rngs[r]``): :func:`recycle_row`. A row
+    whose cars moved gets their IDM speed ratios ``max(v, 0) / v0`` anew (``ratio``)."""
+    cars = cf.shape[2]
+    for r in range(candidates.shape[0]):
+        if candidates[r, 0] < 0:
+            continue
+        if recycle_row(cf, ci, ei, ef, constants, kappa_grid, kappa_table, type_cdf, bands,
+                       lanes, r, candidates[r], rngs[r]):
+            for c in range(cars):
+                ratio[r, c] = max(cf[SPEED, r, c], 0.0) / cf[DESIRED, r, c]
 
 
 def respawn_draws(batch: TrafficBatch) -> FloatArray:
