@@ -15,8 +15,10 @@ by side in the same run stay meaningful):
   (``gym.make``) and the batch (``gym.make_vec(..., vectorization_mode=
   "vector_entry_point")``) at each E, and the ratio batch / single;
 * PPO samples/s (``bench_behavior.py``'s settings: MLP 64x64, 2048 samples per rollout,
-  5 epochs of minibatches of 256): the batch through ``SB3VecEnv`` against two single
-  envs in subprocesses (the previous default of train.py);
+  5 epochs of minibatches of 256), torch on 1 and 2 threads: the batch through
+  ``SB3VecEnv`` with the share of the time in PPO's update, the same PPO on a free env
+  (:class:`NullVecEnv`: SB3's own cost, the ceiling of any env), and two single envs in
+  subprocesses (the previous default of train.py);
 * ``HighwayLoop-v0`` with the lane-keeping driver: simulated s per wall s against the
   number of cars, and the traffic's decision kernel alone (leaders by one sort per lane:
   the ratio 500 cars / 100 cars);
@@ -36,8 +38,10 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 from bench_behavior import PPO_SETTINGS, ppo_samples_per_second
+from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
 import sdc_gym  # noqa: F401
+from sdc_gym.envs.sb3 import SB3VecEnv
 
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
 HERE = Path(__file__).resolve().parent
@@ -80,25 +84,71 @@ def batch_steps_per_second(envs: int, env_steps: int, seed: int = 0) -> float:
     return batches * envs / wall
 
 
-def ppo_batch_samples_per_second(samples: int, envs: int, seed: int = 0) -> float:
-    """bench_behavior's PPO measurement, with the envs as one native batch."""
+class NullVecEnv(VecEnv):
+    """SB3 ``VecEnv`` of ``envs`` envs with the behavior batch's spaces whose step costs
+    nothing (fixed random observations, reward 0, no episode ends): PPO on it is SB3's
+    own cost per sample, the ceiling of any env's samples/s with the same settings."""
+
+    def __init__(self, envs: int) -> None:
+        template = SB3VecEnv(BEHAVIOR, 1)
+        super().__init__(envs, template.observation_space, template.action_space)
+        template.close()
+        shape = self.observation_space.shape or ()
+        self._obs = np.random.default_rng(0).random((envs, *shape)).astype(np.float32)
+
+    def reset(self) -> np.ndarray:
+        return self._obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        pass
+
+    def step_wait(self) -> tuple:
+        envs = self.num_envs
+        return (self._obs.copy(), np.zeros(envs, dtype=np.float32), np.zeros(envs, dtype=bool),
+                [{} for _ in range(envs)])
+
+    def close(self) -> None:
+        pass
+
+    def get_attr(self, attr_name: str, indices: object = None) -> list:
+        return [None] * self.num_envs
+
+    def set_attr(self, attr_name: str, value: object, indices: object = None) -> None:
+        pass
+
+    def env_method(self, method_name: str, *args: object, indices: object = None,
+                   **kwargs: object) -> list:
+        return [None] * self.num_envs
+
+    def env_is_wrapped(self, wrapper_class: type, indices: object = None) -> list:
+        return [False] * self.num_envs
+
+
+def ppo_samples_per_second_on(vec: object, samples: int, envs: int, threads: int,
+                              seed: int = 0) -> tuple[float, float]:
+    """PPO (bench_behavior's settings) on ``vec``: samples/s and the share of the time in
+    PPO's update (``train``)."""
     import torch
     from stable_baselines3 import PPO
-    from stable_baselines3.common.vec_env import VecMonitor
 
-    from sdc_gym.envs.sb3 import SB3VecEnv
-
-    torch.set_num_threads(1)
-    vec = VecMonitor(SB3VecEnv(BEHAVIOR, envs))
-    vec.seed(seed)
+    torch.set_num_threads(threads)
     model = PPO("MlpPolicy", vec, seed=seed, verbose=0,
                 **{**PPO_SETTINGS, "n_steps": PPO_SETTINGS["n_steps"] * 2 // envs})
-    model.learn(2048)  # warm-up: the first rollout
+    spent = {"train": 0.0}
+    train = model.train
+
+    def timed_train() -> None:
+        started = time.perf_counter()
+        train()
+        spent["train"] += time.perf_counter() - started
+
+    model.train = timed_train  # type: ignore[method-assign]
+    model.learn(2048)  # warm-up: the first rollout and update
+    spent["train"] = 0.0
     started = time.perf_counter()
     model.learn(samples, reset_num_timesteps=False)
     wall = time.perf_counter() - started
-    vec.close()
-    return samples / wall
+    return samples / wall, spent["train"] / wall
 
 
 def highway_sim_seconds_per_wall_second(cars: int, seconds: float, seed: int = 0) -> float:
@@ -182,7 +232,8 @@ def main() -> None:
                         help="env steps timed per batch size")
     parser.add_argument("--envs", type=int, nargs="+", default=[1, 8, 64, 256, 1024])
     parser.add_argument("--ppo-steps", type=int, default=16384)
-    parser.add_argument("--ppo-envs", type=int, default=64, help="envs of the batched PPO")
+    parser.add_argument("--ppo-envs", type=int, nargs="+", default=[64, 256],
+                        help="envs of the batched PPO")
     parser.add_argument("--cars", type=int, nargs="+", default=[12, 100, 200, 500])
     parser.add_argument("--sim-seconds", type=float, default=60.0)
     parser.add_argument("--skip-ppo", action="store_true")
@@ -208,11 +259,21 @@ def main() -> None:
         print(f"HighwayLoopBehavior-v0 batch E = {envs:<5d}:  {rate:9.0f} env steps/s  "
               f"({rate / single:5.1f}x the single env)   load {load()}")
     if not args.skip_ppo:
-        ours = ppo_batch_samples_per_second(args.ppo_steps, args.ppo_envs)
+        for envs in args.ppo_envs:
+            for threads in (1, 2):
+                vec = VecMonitor(SB3VecEnv(BEHAVIOR, envs))
+                vec.seed(0)
+                ours, share = ppo_samples_per_second_on(vec, args.ppo_steps, envs, threads)
+                vec.close()
+                ceiling, null_share = ppo_samples_per_second_on(NullVecEnv(envs),
+                                                                args.ppo_steps, envs, threads)
+                print(f"PPO samples/s, batch of {envs:4d} (SB3VecEnv), torch threads "
+                      f"{threads}: {ours:7.0f} ({share:4.0%} in PPO's update); SB3 alone on a "
+                      f"free env: {ceiling:7.0f} ({null_share:4.0%} update)   load {load()}",
+                      flush=True)
         theirs = ppo_samples_per_second(BEHAVIOR, args.ppo_steps, 2)
-        print(f"PPO samples/s, batch of {args.ppo_envs} (SB3VecEnv): {ours:9.0f}")
-        print(f"PPO samples/s, 2 envs in subprocesses:   {theirs:9.0f}   "
-              f"ratio {ours / theirs:.1f}x   load {load()}")
+        print(f"PPO samples/s, 2 single envs in subprocesses (the previous default): "
+              f"{theirs:7.0f}   load {load()}")
     for cars in args.cars:
         rate = highway_sim_seconds_per_wall_second(cars, args.sim_seconds)
         print(f"HighwayLoop-v0 + lane keeping, {cars:4d} cars: {rate:8.1f} simulated s / wall s")

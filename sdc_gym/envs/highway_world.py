@@ -317,7 +317,8 @@ class HighwayWorld:
         metrics = self.metrics
         progress_before = metrics.progress.copy()
         incidents = metrics.record(xy, s, d, speed, contact)
-        self.s, self.d, self.speed = s[:, -1], d[:, -1], speed[:, -1]
+        # Copies, not strided views: the kernels take C-contiguous arrays (one signature).
+        self.s, self.d, self.speed = s[:, -1].copy(), d[:, -1].copy(), speed[:, -1].copy()
         self.read_sensors()
 
         reward = self.progress_scale * (metrics.progress - progress_before)
@@ -350,7 +351,7 @@ class HighwayWorld:
                    self.ego.path_length, PHYSICS_DT, points, guesses, has_end)
         s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses)
         self.end_sd = np.where(has_end[:, None], np.stack([s[:, -1], d[:, -1]], axis=1), 0.0)
-        return s[:, :-1], d[:, :-1]
+        return np.ascontiguousarray(s[:, :-1]), np.ascontiguousarray(d[:, :-1])
 
     def read_sensors(self, rows: IntArray | None = None) -> None:
         """Sensor fusion of the traffic's current state (the last frame of the step)."""

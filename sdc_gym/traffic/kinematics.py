@@ -173,13 +173,15 @@ def segments(cf: np.ndarray, ci: np.ndarray, rows: np.ndarray, begin: np.ndarray
 
 
 @njit(cache=True)
-def lateral_now(cf: np.ndarray, ci: np.ndarray, step: np.ndarray, dt: float,
+def lateral_now(cf: np.ndarray, ci: np.ndarray, step: np.ndarray, first: int, dt: float,
                 lane_width: float, wander: float, d_out: np.ndarray,
                 dd_out: np.ndarray) -> None:
-    """d and d_dot ``(envs, cars)`` of every car at its env's current step."""
-    for e in range(cf.shape[1]):
+    """d and d_dot ``(rows, cars)`` of every car of the envs ``first, first + 1, ...`` (as
+    many as ``d_out`` has rows) at its env's current step."""
+    for r in range(d_out.shape[0]):
+        e = first + r
         for c in range(cf.shape[2]):
-            d_out[e, c], dd_out[e, c] = lateral(cf, ci, e, c, step[e] - 1, 1, dt, lane_width,
+            d_out[r, c], dd_out[r, c] = lateral(cf, ci, e, c, step[e] - 1, 1, dt, lane_width,
                                                 wander)
 
 
@@ -279,11 +281,10 @@ class TrafficGeometry:
         """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``;
         with ``env``, that env's only: ``(1, 1, cars)``)."""
         rows = slice(None) if env is None else slice(env, env + 1)
-        cf, ci = state.car_floats[:, rows], state.car_ints[:, rows]
-        shape = (cf.shape[1], 1, state.cars)
+        shape = (state.envs if env is None else 1, 1, state.cars)
         d, d_dot = np.empty(shape), np.empty(shape)
-        lateral_now(cf, ci, state.step[rows], self.dt, self.lane_width,
-                    self.config.lateral_wander, d[:, 0], d_dot[:, 0])
+        lateral_now(state.car_floats, state.car_ints, state.step, 0 if env is None else env,
+                    self.dt, self.lane_width, self.config.lateral_wander, d[:, 0], d_dot[:, 0])
         return self.pose(state.s[rows, None, :].copy(), d,
                          state.speed[rows, None, :].copy(), d_dot)
 

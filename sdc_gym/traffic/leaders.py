@@ -55,19 +55,42 @@ def _first_above(rel: np.ndarray, order: np.ndarray, low: int, high: int, rel_i:
 
 @njit(cache=True)
 def _stable_order(values: np.ndarray, order: np.ndarray) -> None:
-    """``order`` = the stable argsort of ``values`` (insertion sort for the usual dozen
-    objects, numpy's mergesort for many)."""
+    """``order`` = the stable argsort of ``values`` (``np.argsort(kind="stable")``'s
+    permutation: a stable sort's is unique): insertion sort for the usual dozen objects,
+    a bottom-up merge sort for many (written out: numba's argsort costs seconds to
+    compile)."""
     n = values.shape[0]
-    if n > 64:
-        order[:] = np.argsort(values, kind="mergesort")
-        return
     for i in range(n):
-        value = values[i]
-        j = i
-        while j > 0 and values[order[j - 1]] > value:
-            order[j] = order[j - 1]
-            j -= 1
-        order[j] = i
+        order[i] = i
+    if n <= 64:
+        for i in range(1, n):
+            value = values[i]
+            j = i
+            while j > 0 and values[order[j - 1]] > value:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = i
+        return
+    source, target = order, np.empty(n, dtype=order.dtype)
+    width, passes = 1, 0
+    while width < n:
+        for low in range(0, n, 2 * width):
+            middle, high = min(low + width, n), min(low + 2 * width, n)
+            a, b = low, middle
+            for k in range(low, high):
+                # Ties take the left run's first: stable.
+                if a < middle and (b >= high or values[source[b]] >= values[source[a]]):
+                    target[k] = source[a]
+                    a += 1
+                else:
+                    target[k] = source[b]
+                    b += 1
+        source, target = target, source
+        width *= 2
+        passes += 1
+    if passes % 2:  # the result is in the work array
+        for i in range(n):
+            order[i] = source[i]
 
 
 @njit(cache=True)

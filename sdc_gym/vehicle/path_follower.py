@@ -35,7 +35,8 @@ def send_paths(queue: np.ndarray, queue_length: np.ndarray, queue_due: np.ndarra
     for e in range(queue.shape[0]):
         slot = (queue_head[e] + queue_count[e]) % depth
         count = lengths[e]
-        queue[e, slot, :count] = paths[e, :count]
+        for k in range(count):  # element-wise: no array assignment's error path to compile
+            queue[e, slot, k, 0], queue[e, slot, k, 1] = paths[e, k, 0], paths[e, k, 1]
         queue_length[e, slot] = count
         queue_due[e, slot] = frame[e] + latency
         queue_count[e] += 1
@@ -52,7 +53,8 @@ def _arrive(e: int, xy: np.ndarray, frame: np.ndarray, path: np.ndarray,
     while queue_count[e] > 0 and queue_due[e, queue_head[e]] <= frame[e]:
         slot = queue_head[e]
         count = queue_length[e, slot]
-        path[e, :count] = queue[e, slot, :count]
+        for k in range(count):
+            path[e, k, 0], path[e, k, 1] = queue[e, slot, k, 0], queue[e, slot, k, 1]
         path_length[e] = count
         path_start[e] = adopted_start(path[e], count, xy[e, 0], xy[e, 1])
         queue_head[e] = (slot + 1) % depth

@@ -403,7 +403,10 @@ def sense_batch(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
     out, scratch = first._buffers(envs, cars)
     s, d = out.s, out.d
     nx, ny, bend, fault, xy, velocity, miss = scratch
-    measure_batch(np.ascontiguousarray(fusion, dtype=np.float64), np.ascontiguousarray(present),
+    # Read-only either way (the sensors' shared all-present mask is): one signature.
+    present = np.ascontiguousarray(present).view()
+    present.flags.writeable = False
+    measure_batch(np.ascontiguousarray(fusion, dtype=np.float64), present,
                   first._geometry_xy_rows, length, first._geometry_scale, p.fault_tolerance,
                   s, d, nx, ny, bend, fault, out.count, xy, velocity, miss, out.ids)
     if (fault != SOUND).any():
