@@ -37,6 +37,7 @@ from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
+import single_env_rates
 from bench_behavior import PPO_SETTINGS, ppo_samples_per_second
 from stable_baselines3.common.vec_env import VecEnv, VecMonitor
 
@@ -152,24 +153,8 @@ def ppo_samples_per_second_on(vec: object, samples: int, envs: int, threads: int
 
 
 def highway_sim_seconds_per_wall_second(cars: int, seconds: float, seed: int = 0) -> float:
-    from agents.lane_keeping import LaneKeepingDriver
-
-    env = gym.make("sdc_gym/HighwayLoop-v0", config={
-        "steps_per_action": 5, "terminate_on_collision": False, "laps": 100,
-        "traffic": {"car_count": cars, "spawn_range": 200.0 if cars <= 50 else 3000.0}})
-    driver = LaneKeepingDriver(env.unwrapped.road)
-    observation, _ = env.reset(seed=seed)
-    driver.reset()
-    steps = round(seconds / 0.1)
-    started = time.perf_counter()
-    for _ in range(steps):
-        observation, _, terminated, truncated, _ = env.step(driver.act(observation))
-        if terminated or truncated:
-            observation, _ = env.reset()
-            driver.reset()
-    wall = time.perf_counter() - started
-    env.close()
-    return steps * 0.1 / wall
+    """Lane keeping on ``HighwayLoop-v0`` with ``cars`` cars (single_env_rates.py's)."""
+    return single_env_rates.lane_keeping(round(seconds / 0.1), seed, cars)[0]
 
 
 def decision_kernel_ms(cars: int, repeats: int = 30) -> float:

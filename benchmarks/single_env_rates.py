@@ -51,14 +51,17 @@ def behavior(steps: int, seed: int) -> tuple[float, float, str]:
     return steps / wall, warm, "env steps / s"
 
 
-def lane_keeping(steps: int, seed: int) -> tuple[float, float, str]:
-    """Simulated s per wall s of the lane-keeping driver, 12 cars, 5 frames per step."""
+def lane_keeping(steps: int, seed: int, cars: int | None = None) -> tuple[float, float, str]:
+    """Simulated s per wall s of the lane-keeping driver, 5 frames per step; ``cars``
+    traffic cars (spread over 3 km above 50), or the default 12."""
     import gymnasium as gym
 
     from agents.lane_keeping import LaneKeepingDriver
 
-    env = gym.make("sdc_gym/HighwayLoop-v0", config={
-        "steps_per_action": 5, "terminate_on_collision": False, "laps": 100})
+    config = {"steps_per_action": 5, "terminate_on_collision": False, "laps": 100}
+    if cars is not None:
+        config["traffic"] = {"car_count": cars, "spawn_range": 200.0 if cars <= 50 else 3000.0}
+    env = gym.make("sdc_gym/HighwayLoop-v0", config=config)
     driver = LaneKeepingDriver(env.unwrapped.road)
     observation, _ = env.reset(seed=seed)
     driver.reset()

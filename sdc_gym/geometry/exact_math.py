@@ -36,14 +36,9 @@ _DBL_MIN = 2.2250738585072014e-308  # smallest normal double
 
 @njit(cache=True, inline="always")
 def _square_parts(x: float) -> tuple[float, float]:
-    """``x * x`` as hi + lo exactly (Dekker's product of the Veltkamp halves)."""
-    t = x * _VELTKAMP
-    hi = t - (t - x)
-    lo = x - hi
-    p = hi * hi
-    q = hi * lo + lo * hi
-    z = p + q
-    return z, p - z + q + lo * lo
+    """``x * x`` as hi + lo exactly (Dekker's product of the Veltkamp halves: the same
+    operations as CPython's square step)."""
+    return _product_parts(x, x)
 
 
 @njit(cache=True, inline="always")
