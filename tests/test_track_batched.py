@@ -225,9 +225,11 @@ def test_single_envs_reproduce_the_recorded_scalar_episodes(name: str) -> None:
 
 
 def test_kernel_math_is_pythons() -> None:
+    """The exact-math kernels (``sdc_gym.geometry.exact_math``) give Python's bits: on
+    random pairs over twelve orders of magnitude, signed zeros and a half-way case."""
     from numba import njit
 
-    from sdc_gym.geometry.exact_kernels import py_hypot, py_max, py_min, py_remainder
+    from sdc_gym.geometry.exact_math import py_hypot, py_max, py_min, py_mod, py_remainder
 
     @njit
     def apply(a, b, out):
@@ -236,17 +238,21 @@ def test_kernel_math_is_pythons() -> None:
             out[1, i] = py_remainder(a[i], b[i])
             out[2, i] = py_max(a[i], b[i])
             out[3, i] = py_min(a[i], b[i])
+            out[4, i] = py_mod(a[i], abs(b[i]))  # the kernels' divisors are > 0
 
     rng = np.random.default_rng(5)
     a = rng.normal(size=100_000) * 10.0 ** rng.uniform(-6, 6, 100_000)
     b = rng.normal(size=100_000) * 10.0 ** rng.uniform(-6, 6, 100_000)
     a[:4], b[:4] = [0.0, -0.0, 2.5, 3.0], [0.0, 0.0, 1.0, 2.0]  # signed zeros, half-way
-    out = np.empty((4, a.size))
-    apply(a, np.where(b == 0.0, 1.0, b), out)
-    bb = np.where(b == 0.0, 1.0, b).tolist()
-    for row, function in enumerate((math.hypot, math.remainder, max, min)):
-        expected = np.array([function(x, y) for x, y in zip(a.tolist(), bb, strict=True)])
-        assert np.array_equal(out[row].view(np.int64), expected.view(np.int64)), function
+    a[4:8], b[4:8] = [0.5, -0.0, 1.0, 3.0], [1.0, 1.0, 1.0, 1.0]  # in range, -0.0, edges
+    b = np.where(b == 0.0, 1.0, b)
+    out = np.empty((5, a.size))
+    apply(a, b, out)
+    pairs = list(zip(a.tolist(), b.tolist(), strict=True))
+    for row, function in enumerate((math.hypot, math.remainder, max, min,
+                                    lambda x, y: x % abs(y))):
+        expected = np.array([function(x, y) for x, y in pairs])
+        assert np.array_equal(out[row].view(np.int64), expected.view(np.int64)), row
 
 
 def test_a_pickled_batch_continues_exactly_as_the_original() -> None:

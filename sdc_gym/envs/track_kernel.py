@@ -33,6 +33,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.geometry.projection_kernel import LineGeometry, project_point
 from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.light_kernel import LightSchedule, step_lights
@@ -337,7 +338,7 @@ def end_step(c: TrackConstants, st: TrackState, buffers: FrameBuffers, out: Step
         gained, s_before = 0.0, st.s_start[env]
         for i in range(start, start + frames):
             if not buffers.manual[env, i]:
-                gained += (buffers.s[env, i] - s_before + half) % length - half
+                gained += py_mod(buffers.s[env, i] - s_before + half, length) - half
             s_before = buffers.s[env, i]
     out.reward[env, step] = c.progress_scale * gained
     # Laps as the driving metrics count them for a chunk of these frames.

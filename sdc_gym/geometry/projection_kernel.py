@@ -1,12 +1,15 @@
 """Newton projections onto a reference line's spline, compiled (numba) per point.
 
-:meth:`ReferenceLine._newton_arrays <sdc_gym.geometry.reference_line.ReferenceLine>` runs
-:func:`project_points` over arrays of points, and the track world's frame kernel calls
-:func:`project_point` for every env's car: one implementation. Each point iterates
-Newton on ``f(u) = (r(u) - p) . r'(u)`` from its guess until its own step is below
+:func:`project_point` is the projection of one point: Newton on
+``f(u) = (r(u) - p) . r'(u)`` from its guess until its own step is below
 :data:`NEWTON_TOLERANCE_M` (at most :data:`NEWTON_ITERATIONS`), on the spline's
-coefficients as floats, with exactly the operations (and their order) of the array code
-it replaced, so the results are the same to the last bit.
+coefficients as floats, with the per-point arithmetic the projection is defined by (a
+complex times a real as the two products, ``Re(z conj(w))`` as ``z.x w.x + z.y w.y``, the
+closing ``d`` over the C library's ``hypot`` of the velocity, as numpy's ``hypot``), so
+the same bits as evaluating it over arrays. It is the only implementation:
+:meth:`ReferenceLine.project <sdc_gym.geometry.reference_line.ReferenceLine.project>`
+runs :func:`project_points` over arrays of points (the highway's cars and frames), and
+the track world's frame kernel calls :func:`project_point` for every env's car.
 
 A line is handed to the kernels as a :class:`LineGeometry` tuple (built once by
 :meth:`ReferenceLine.geometry`).
@@ -20,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.kernel_compiler import kernel
 
 NEWTON_ITERATIONS = 6
@@ -28,6 +32,9 @@ MAX_NEWTON_STEP_M = 50.0
 """The largest step one iteration may take."""
 NEWTON_TOLERANCE_M = 1e-6
 """A point stops iterating after a step under this (its error is then ~1e-12 m)."""
+LOCAL_SEARCH_TRUST_M = 25.0
+"""A local (warm-started) projection that lands further than this from the point, or
+moves s by more than this, is redone globally: the point is not where the guess said."""
 
 
 class LineGeometry(NamedTuple):
@@ -49,7 +56,7 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
     rows = line.coef_xy
     step_u, inverse, last = line.knot_step, line.inverse_step, line.last_segment
     total, scale = line.total_param, line.param_scale
-    u0 = (s0 % line.length) * scale
+    u0 = py_mod(s0, line.length) * scale
     u = u0
     for _ in range(NEWTON_ITERATIONS):
         i = min(int(u * inverse), last)
@@ -67,7 +74,7 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
             step = MAX_NEWTON_STEP_M
         if step < -MAX_NEWTON_STEP_M:
             step = -MAX_NEWTON_STEP_M
-        u = (u - step) % total
+        u = py_mod(u - step, total)
         if -NEWTON_TOLERANCE_M < step < NEWTON_TOLERANCE_M:
             break
     i = min(int(u * inverse), last)
@@ -79,14 +86,25 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
     point_y = ((c[1] * t + c[3]) * t + c[5]) * t + c[7]
     d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / math.hypot(velocity_x,
                                                                              velocity_y)
-    moved = (((u - u0 + 0.5 * total) % total) - 0.5 * total) / scale
+    moved = (py_mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
     return u / scale, d, moved
+
+
+@kernel
+def is_lost(d: float, moved: float) -> bool:
+    """Whether a local projection is not to be trusted (see :data:`LOCAL_SEARCH_TRUST_M`;
+    NaN is not lost, as numpy's comparisons say)."""
+    return abs(moved) > LOCAL_SEARCH_TRUST_M or abs(d) > LOCAL_SEARCH_TRUST_M
 
 
 @kernel
 def project_points(line: LineGeometry, x: NDArray[np.float64], y: NDArray[np.float64],
                    s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
-                   moved: NDArray[np.float64]) -> None:
-    """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``."""
+                   moved: NDArray[np.float64]) -> int:
+    """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``;
+    returns how many the local search lost (:func:`is_lost`)."""
+    lost = 0
     for k in range(x.size):
         s[k], d[k], moved[k] = project_point(line, x[k], y[k], s0[k])
+        lost += is_lost(d[k], moved[k])
+    return lost

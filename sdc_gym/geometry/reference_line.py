@@ -26,12 +26,15 @@ line turns left (counter-clockwise).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from sdc_gym.geometry.exact_math import power
+from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
 from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
 from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
 from sdc_gym.geometry.projection_kernel import NEWTON_TOLERANCE_M as _NEWTON_TOLERANCE_M
@@ -44,13 +47,8 @@ _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(20)
 _GL_NODES = 0.5 * (_GL_NODES + 1.0)
 _GL_WEIGHTS = 0.5 * _GL_WEIGHTS
 
-# Newton iterations used by projections (at most; they stop at convergence, 2-3 from a
-# guess within a metre), the largest step one may take and the tolerance: the kernels'.
 # Batches up to this many points are projected in plain Python (see ReferenceLine._newton).
 _SCALAR_BATCH_LIMIT = 12
-# A local (warm-started) projection that lands further than this from the point, or moves
-# s by more than this, is redone globally: the car is not where the guess said.
-_LOCAL_SEARCH_TRUST_M = 25.0
 
 
 class ReferenceLineError(ValueError):
@@ -350,13 +348,14 @@ class ReferenceLine:
         away (the car is not where the guess said)."""
         x = np.asarray(x, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
-        s, d, moved = self._newton_arrays(x, y, np.asarray(s_guess, dtype=np.float64))
-        lost = (np.abs(moved) > _LOCAL_SEARCH_TRUST_M) | (np.abs(d) > _LOCAL_SEARCH_TRUST_M)
-        if np.count_nonzero(lost):
-            s, d = s.copy(), d.copy()
-            xl, yl = x[lost], y[lost]
+        s, d, moved, lost = self._newton_arrays(x, y, np.asarray(s_guess, dtype=np.float64),
+                                                count_lost=True)
+        if lost:
+            lost_points = (np.abs(moved) > _LOCAL_SEARCH_TRUST_M) | (
+                np.abs(d) > _LOCAL_SEARCH_TRUST_M)
+            xl, yl = x[lost_points], y[lost_points]
             s0 = self.nearest_sample_s(np.stack([xl, yl], axis=-1))
-            s[lost], d[lost], _ = self._newton_arrays(xl, yl, s0)
+            s[lost_points], d[lost_points], _ = self._newton_arrays(xl, yl, s0)
         return s, d
 
     def project_few(self, points: list[list[float]],
@@ -371,23 +370,23 @@ class ReferenceLine:
         :mod:`~sdc_gym.geometry.projection_kernel`)."""
         return self._geometry
 
-    def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray
-                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Newton projections of points from their guessed s: (s, d, how far s moved).
+    def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray,
+                       count_lost: bool = False) -> Any:
+        """Newton projections of points from their guessed s: (s, d, how far s moved),
+        and with ``count_lost`` how many the local search lost.
 
         Every point iterates until its own step is below the tolerance (at most
-        ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``): a complex
-        times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``. The
-        closing evaluation takes d from the right normal ``1j * conj(velocity)`` and
-        ``abs(velocity)`` (``hypot``), as complex arithmetic does. Compiled per point
-        (:func:`~sdc_gym.geometry.projection_kernel.project_points`).
+        ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``), in one
+        compiled pass (:func:`~sdc_gym.geometry.projection_kernel.project_points`).
         """
-        x, y, s0 = np.broadcast_arrays(np.asarray(x, dtype=np.float64),
-                                       np.asarray(y, dtype=np.float64),
-                                       np.asarray(s0, dtype=np.float64))
-        shape = x.shape
-        s, d, moved = np.empty(shape), np.empty(shape), np.empty(shape)
-        project_points(self._geometry, np.ascontiguousarray(x).reshape(-1),
-                       np.ascontiguousarray(y).reshape(-1), np.ascontiguousarray(s0).reshape(-1),
-                       s.reshape(-1), d.reshape(-1), moved.reshape(-1))
-        return s, d, moved
+        shape = np.shape(x)
+        if np.shape(y) == shape == np.shape(s0):
+            flat = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, s0)]
+        else:
+            shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(s0))
+            flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
+                    for a in (x, y, s0)]
+        out = np.empty((3, flat[0].size))
+        lost = project_points(self._geometry, *flat, *out)
+        result = out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)
+        return (*result, lost) if count_lost else result

@@ -17,6 +17,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.kernel_compiler import kernel
 
 CHANGE_GUARD_S = 1e-9
@@ -54,7 +55,7 @@ def states_at(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: flo
               out: NDArray[np.int8]) -> None:
     """Each light's state at ``time_s`` (s since reset) into ``out`` (k,)."""
     for light in range(offsets.size):
-        phase = (time_s + offsets[light]) % schedule.cycle[light]
+        phase = py_mod(time_s + offsets[light], schedule.cycle[light])
         # GREEN = 2, YELLOW = 1, RED = 0: count the boundaries still ahead in the cycle.
         out[light] = (1 if phase < schedule.green_end[light] else 0) + (
             1 if phase < schedule.yellow_end[light] else 0)
@@ -68,7 +69,7 @@ def states_at(schedule: LightSchedule, offsets: NDArray[np.float64], time_s: flo
 def time_to_change(schedule: LightSchedule, offsets: NDArray[np.float64], light: int,
                    time_s: float) -> float:
     """s from ``time_s`` until light ``light``'s state next changes (inf: never)."""
-    phase = (time_s + offsets[light]) % schedule.cycle[light]
+    phase = py_mod(time_s + offsets[light], schedule.cycle[light])
     if phase < schedule.green_end[light]:
         boundary = schedule.green_end[light]
     elif phase < schedule.yellow_end[light]:

@@ -22,7 +22,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.geometry.exact_kernels import py_min
+from sdc_gym.geometry.exact_math import py_min, py_mod
 from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import GREEN, RED, YELLOW
 from sdc_gym.metrics.batch import DrivingMetricsBatch
@@ -156,7 +156,7 @@ def stop_line_frame(lines: StopLines, st: StopLineState, env: int, frame: int, s
     metrics will get; ``states``: the lights' states at that frame)."""
     length = lines.length
     half = 0.5 * length
-    progress = st.progress[env] + (((s - st.s_last[env]) + half) % length - half)
+    progress = st.progress[env] + (py_mod((s - st.s_last[env]) + half, length) - half)
     st.progress[env] = progress
     st.s_last[env] = s
     step = st.steps[env] + 1

@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.kernel_compiler import kernel
 
 
@@ -19,7 +20,7 @@ def next_stop_line(sorted_s: NDArray[np.float64], sorted_index: NDArray[np.int64
     count = sorted_s.size
     if count == 0:
         return -1, np.inf
-    s = s % length
+    s = py_mod(s, length)
     for i in range(count):  # bisect_left: the first line at or beyond s
         if sorted_s[i] >= s:
             return sorted_index[i], sorted_s[i] - s

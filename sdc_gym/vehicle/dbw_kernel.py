@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.geometry.exact_kernels import py_max, py_min, py_remainder
+from sdc_gym.geometry.exact_math import py_max, py_min, py_remainder
 from sdc_gym.kernel_compiler import kernel
 
 # --- state columns: VehicleState's fields, in order ------------------------------------------

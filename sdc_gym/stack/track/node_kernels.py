@@ -24,12 +24,13 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.geometry.exact_kernels import (
+from sdc_gym.geometry.exact_math import (
     np_maximum,
     np_minimum,
     py_hypot,
     py_max,
     py_min,
+    py_mod,
     py_remainder,
 )
 from sdc_gym.kernel_compiler import kernel
@@ -418,10 +419,11 @@ def lower_for_stop(uc: UpdaterConstants, first: int, stop_waypoint: int,
     n = uc.x.size
     length = uc.length
     s0 = uc.s[first]
-    line_at = ((uc.s[stop_waypoint] - s0) % length + uc.stop_line_offset[stop_waypoint]) % length
+    line_at = py_mod(py_mod(uc.s[stop_waypoint] - s0, length)
+                     + uc.stop_line_offset[stop_waypoint], length)
     stop_at = line_at - uc.stop_margin
     for j in range(speeds.size):
-        along = (uc.s[(first + j) % n] - s0) % length
+        along = py_mod(uc.s[(first + j) % n] - s0, length)
         ramp = math.sqrt(uc.ramp_decel2 * np_maximum(stop_at - along, 0.0))
         if ramp < uc.min_ramp_speed:
             ramp = 0.0
