@@ -98,11 +98,18 @@ def is_lost(d: float, moved: float) -> bool:
 
 
 @kernel
-def project_points(line: LineGeometry, x: NDArray[np.float64], y: NDArray[np.float64],
-                   s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
+def project_points(coef_xy: NDArray[np.float64], knot_step: float, inverse_step: float,
+                   last_segment: int, total_param: float, param_scale: float, length: float,
+                   x: NDArray[np.float64], y: NDArray[np.float64], s0: NDArray[np.float64],
+                   s: NDArray[np.float64], d: NDArray[np.float64],
                    moved: NDArray[np.float64]) -> int:
     """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``;
-    returns how many the local search lost (:func:`is_lost`)."""
+    returns how many the local search lost (:func:`is_lost`). The line comes as the
+    fields of its :class:`LineGeometry` (``project_points(*geometry, x, ...)``): arrays
+    and numbers are what numba's dispatcher types fastest when Python calls a kernel (a
+    tuple argument costs tens of microseconds per call)."""
+    line = LineGeometry(coef_xy, knot_step, inverse_step, last_segment, total_param,
+                        param_scale, length)
     lost = 0
     for k in range(x.size):
         s[k], d[k], moved[k] = project_point(line, x[k], y[k], s0[k])

@@ -387,6 +387,6 @@ class ReferenceLine:
             flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
                     for a in (x, y, s0)]
         out = np.empty((3, flat[0].size))
-        lost = project_points(self._geometry, *flat, *out)
+        lost = project_points(*self._geometry, *flat, *out)
         result = out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)
         return (*result, lost) if count_lost else result
