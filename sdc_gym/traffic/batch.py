@@ -11,43 +11,31 @@ times have different phases of the decision period, so one advance may hold seve
 decision rounds, each for the envs of one phase. Env ``i`` of a batch is exactly a
 single env (a batch of one) with the same generator, frame for frame.
 
-Scenarios and road events: ``object_slots`` columns follow the ``car_count`` cars (parked
-in random traffic, road objects when an event places them), and an env may start from
-explicit slots (:meth:`TrafficBatch.reset_slots_at`, :mod:`sdc_gym.traffic.slots`). An
-env's *controller* (``controllers[env]``: a scenario's script, the random road events) is
-called at each of its decision instants, just before the decision, with the row it may
-change (:meth:`TrafficController.before_decision`). Until a batch holds such slots
-(:attr:`TrafficBatch.scripted`), none of this runs.
+Scenarios and road events (:mod:`sdc_gym.traffic.scripted`): ``object_slots`` columns
+follow the ``car_count`` cars (parked in random traffic, road objects when an event places
+them); an env may start from explicit slots (:meth:`TrafficBatch.reset_slots_at`) and have
+a *controller* (a scenario's script, the random road events) called at each of its
+decision instants. Until a batch holds such slots (``scripted``), none of this runs.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.traffic import scripted as scripting
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
 from sdc_gym.traffic.kinematics import RowsOf, TrafficGeometry
-from sdc_gym.traffic.placement import reset_row
-from sdc_gym.traffic.slots import SlotSpec, write_slot
-from sdc_gym.traffic.state import TRAFFIC, TrafficState
-from sdc_gym.traffic.vehicle_types import KINDS, spawn_probabilities
+from sdc_gym.traffic.placement import reset_row, reset_row_to
+from sdc_gym.traffic.state import TrafficState
+from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
-
-
-class TrafficController(Protocol):
-    """Changes an env's traffic at its decision instants (a scenario's scripted actions,
-    the random road events)."""
-
-    def before_decision(self, batch: TrafficBatch, st: TrafficState, row: int) -> None:
-        """Row ``row`` of ``st`` is the env at a decision instant (its ``step`` and ego
-        set); change it before the cars decide."""
 
 
 class TrafficBatch:
@@ -104,17 +92,9 @@ class TrafficBatch:
         self.slots = config.car_count + self.object_slots
         self.state = TrafficState(envs, self.slots, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
-        self.controllers: list[TrafficController | None] = [None] * envs
-        self.scripted = False
-        if self.object_slots:
-            self.enable_scripting()
+        self.controllers: list[scripting.TrafficController | None] = [None] * envs
+        self.scripted = self.object_slots > 0
         self._all = np.arange(envs)
-
-    def enable_scripting(self) -> None:
-        """Let the kernels see roles, scripted accelerations and lateral offsets
-        (:mod:`sdc_gym.traffic.roles`); for good: with only traffic cars they change nothing."""
-        self.scripted = True
-        self.geometry.scripted = True
 
     # ------------------------------------------------------------------ helpers
     def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
@@ -139,49 +119,32 @@ class TrafficBatch:
                                            self.config.lane_change_duration)
         self.rngs[env] = rng
         self.controllers[env] = None
-        reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        if self.object_slots:  # the cars as without object slots, then the slots parked
+            scripting.reset_random_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        else:
+            reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
         self._settle_pose(env)
 
     def reset_slots_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
-                       ego_speed: float, slots: list[SlotSpec], *, step: int = 0,
+                       ego_speed: float, slots: list[scripting.SlotSpec], *, step: int = 0,
                        respawn_blocked_steps: int = 0,
-                       controller: TrafficController | None = None) -> None:
-        """Env ``env`` from explicit slots (one :class:`SlotSpec` per column: scenarios,
-        replays), its traffic clock at ``step`` (a replay continues the recorded one, so
-        that the decision instants and the lateral wander fall as they did)."""
-        if len(slots) != self.state.cars:
-            raise ValueError(f"the traffic has {self.state.cars} slots "
-                             f"({self.config.car_count} cars + {self.object_slots} road "
-                             f"objects); got {len(slots)}")
-        for spec in slots:
-            if not 0 <= spec.type_index < len(KINDS):
-                raise ValueError(f"type_index must be in [0, {len(KINDS)}), got "
-                                 f"{spec.type_index}")
-            if spec.role != TRAFFIC or spec.hold_lane or spec.forced_until_steps != 0:
-                self.enable_scripting()
-        if controller is not None:
-            self.enable_scripting()
-        st = self.state
+                       controller: scripting.TrafficController | None = None) -> None:
+        """Env ``env`` from explicit slots (one :class:`~sdc_gym.traffic.slots.SlotSpec`
+        per column: scenarios, replays) with its ``controller``, its traffic clock at
+        ``step`` (a replay continues the recorded one)."""
+        self.scripted = True
         self.rngs[env] = rng
         self.controllers[env] = controller
-        st.clear_rows(env, self.config.lane_change_duration)
-        st.step[env] = step
-        st.respawn_blocked_until[env] = step + respawn_blocked_steps
-        st.ego_s[env], st.ego_d[env], st.ego_speed[env] = (float(ego_s) % self.loop,
-                                                           float(ego_d), float(ego_speed))
-        for i, spec in enumerate(slots):
-            if not -1 <= spec.lane < self.lanes + 1:
-                raise ValueError(f"slot {i}: lane must be in [-1, {self.lanes}], got "
-                                 f"{spec.lane}")
-            write_slot(self, st, env, i, spec, rng)
+        scripting.reset_slots_row(self, self.state, env, rng, ego_s, ego_d, ego_speed, slots,
+                                  step, respawn_blocked_steps)
         self._settle_pose(env)
 
     def reset_to_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
                     ego_speed: float, *, s: ArrayLike, lane: ArrayLike, speed: ArrayLike,
                     desired_speed: ArrayLike | None = None,
                     type_index: ArrayLike | None = None) -> None:
-        """Env ``env`` from explicit traffic cars (tests); with a single env the number of
-        cars may differ from ``config.car_count``."""
+        """Env ``env`` from explicit cars (scenarios, replays, tests); with a single env the
+        number of cars may differ from ``config.car_count``."""
         s = np.atleast_1d(np.asarray(s, dtype=np.float64))
         n = len(s)
         lane = np.broadcast_to(np.asarray(lane, dtype=np.int64), (n,))
@@ -192,14 +155,17 @@ class TrafficBatch:
             np.asarray(type_index, dtype=np.int64), (n,))
         if np.any((lane < 0) | (lane >= self.lanes)):
             raise ValueError(f"lane must be in [0, {self.lanes}); got {lane.tolist()}")
+        if np.any((types < 0) | (types >= len(VEHICLE_TYPES))):
+            raise ValueError(f"type_index must be in [0, {len(VEHICLE_TYPES)})")
         if n != self.state.cars:
             if self.envs != 1:
                 raise ValueError(f"a batch of {self.envs} envs has {self.state.cars} cars "
                                  f"per env; got {n}")
             self.state = TrafficState(1, n, self.config.lane_change_duration)
-        self.reset_slots_at(env, rng, ego_s, ego_d, ego_speed, [
-            SlotSpec(TRAFFIC, int(types[i]), float(s[i]), int(lane[i]), float(speed[i]),
-                     float(desired[i])) for i in range(n)])
+        self.rngs[env] = rng
+        reset_row_to(self, self.state, env, rng, ego_s, ego_d, ego_speed, s, lane, speed,
+                     desired, types)
+        self._settle_pose(env)
 
     def _settle_pose(self, env: int) -> None:
         st = self.state
@@ -262,11 +228,10 @@ class TrafficBatch:
                     sub.ego_speed[moved] = ego_speed[at]
                 sub.step = step0[rows] + end
                 if self.scripted:
-                    for row, env in enumerate(rows.tolist()):
-                        controller = self.controllers[env]
-                        if controller is not None:
-                            controller.before_decision(self, sub, row)
+                    lc_start = scripting.before_decision(self, sub, rows)
                 decide(self, sub, [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
+                if self.scripted:
+                    scripting.after_decision(sub, lc_start)
                 if not whole:
                     st.put(rows, sub)
                 segment_start[rows] = end
@@ -278,6 +243,8 @@ class TrafficBatch:
         st.ego_s = ego_s[:, -1] % self.loop
         st.ego_d = ego_d[:, -1].copy()
         st.ego_speed = ego_speed[:, -1].copy()
+        if self.scripted:
+            scripting.object_lateral(st, step0, self.dt, d_out, dd_out)
         samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
         self.geometry.update_pose(st, samples)
         return samples

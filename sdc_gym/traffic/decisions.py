@@ -14,11 +14,6 @@ At a decision every car of those envs gets, in this order (see
    start per target lane per env (the lowest slot);
 6. rogue events (hard braking, cut-ins), when enabled.
 
-With scenario cars, road objects or parked slots in the batch (``batch.scripted``), the
-masks and terms of :mod:`sdc_gym.traffic.roles` join in (objects occupy their footprint's
-lanes and stand still, parked slots are nowhere, held or scripted cars do not change
-lanes, a car stuck behind an object may merge from a standstill).
-
 Every array is ``(envs, ...)``: the arithmetic of all those envs runs in the same numpy
 calls. The accelerations are held until the next decision.
 """
@@ -31,7 +26,6 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.traffic import roles
 from sdc_gym.traffic.config import TrafficConfig
 from sdc_gym.traffic.gather import gather
 from sdc_gym.traffic.idm import _NOT_ZERO as _IDM_NOT_ZERO
@@ -68,8 +62,6 @@ def objects(batch: TrafficBatch, st: TrafficState) -> tuple[FloatArray, FloatArr
     cars = occupies[:, :, :-1]
     np.equal(lanes, st.origin[:, None, :], out=cars)
     cars |= lanes == st.target_lane[:, None, :]
-    if batch.scripted:
-        roles.occupy_footprints(batch, st, cars)
     occupies[:, :, -1] = batch.ego_lanes(st.ego_d)
     return s_all, d_all, v_all, occupies
 
@@ -88,8 +80,7 @@ def idm_terms(batch: TrafficBatch, st: TrafficState, v_all: FloatArray
     """Per object (cars, then the ego, who "wants" its current speed): speed, ``v T``,
     ``a_max * (free-road term)``, ``a_max``, ``2 sqrt(a_max b)``."""
     idm = batch.config.idm
-    desired = roles.desired_speeds(st) if batch.scripted else st.desired
-    v0 = np.concatenate([desired, np.maximum(st.ego_speed, 0.1)[:, None]], axis=1)
+    v0 = np.concatenate([st.desired, np.maximum(st.ego_speed, 0.1)[:, None]], axis=1)
     a = np.concatenate([st.a_max, batch.ego_a_max[: st.envs]], axis=1)
     tsab = np.concatenate([st.tsab, batch.ego_tsab_column[: st.envs]], axis=1)
     ratio = np.maximum(v_all, 0.0)
@@ -153,16 +144,13 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
         st.lc_end = np.where(finished, IDLE, st.lc_end)
     s_all, d_all, v_all, occupies = objects(batch, st)
     rel = relative(batch, s_all, st.ego_s)
-    farthest = np.abs(rel).max(axis=1) if not batch.scripted else np.abs(
-        roles.live(st, rel)).max(axis=1)
-    cars_rel = rel[:, :n] if not batch.scripted else roles.recyclable(st, rel[:, :n])
-    far = farthest if not batch.scripted else np.abs(cars_rel).max(axis=1)
-    if np.count_nonzero(far > batch.range):
-        far_envs = np.flatnonzero(far > batch.range)
-        if any([recycle(batch, st, int(e), cars_rel[e], rngs[e]) for e in far_envs]):
+    farthest = np.abs(rel).max(axis=1)
+    if np.count_nonzero(farthest > batch.range):
+        far_envs = np.flatnonzero(farthest > batch.range)
+        if any([recycle(batch, st, int(e), rel[e, :n], rngs[e]) for e in far_envs]):
             s_all, d_all, v_all, occupies = objects(batch, st)  # cars moved: rebuild
             rel = relative(batch, s_all, st.ego_s)
-            farthest = np.abs(rel if not batch.scripted else roles.live(st, rel)).max(axis=1)
+            farthest = np.abs(rel).max(axis=1)
     kappa = batch.geometry.curvature(s_all)
     st.kappa = kappa[:, :n]
     scale_all = kappa * d_all
@@ -206,11 +194,7 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
     candidate &= clear_ahead
     candidate &= clear_behind
     eligible = st.lc_end == IDLE
-    moving = st.speed >= cfg.lane_change_min_speed
-    if batch.scripted:  # a car held up by a road object merges even from a standstill
-        moving |= roles.stuck_behind_object(st, li, own, own_gap)
-        eligible &= roles.free_to_decide(st, now)
-    eligible &= moving
+    eligible &= st.speed >= cfg.lane_change_min_speed
     eligible &= now >= brake_until
     candidate &= eligible[:, None, :]
     if np.count_nonzero(candidate):
@@ -241,8 +225,6 @@ def decide(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
         acc = _rogue(batch, st, rngs, acc, brake_until, adjacent.transpose(0, 2, 1),
                      clear_ahead & clear_behind, lead_gap, follow_gap, lead_v,
                      gather(v_all[:, None, :], fi))
-    if batch.scripted:
-        acc = roles.scripted_acceleration(st, now, acc)
     st.acc = acc
     st.half_acc = acc * 0.5
 
@@ -262,8 +244,6 @@ def _rogue(batch: TrafficBatch, st: TrafficState, rngs: list[np.random.Generator
     now = st.step[:, None]
     u = np.stack([rng.random((2 + batch.lanes, st.cars)) for rng in rngs])
     event = u[:, 0] < batch.rogue_p
-    if batch.scripted:  # objects and held scenario cars have no rogue moments
-        event &= roles.free_to_decide(st, now)
     brake = event & (u[:, 1] < 0.5) & (now >= st.brake_until)
     cut = event & (u[:, 1] >= 0.5)
     st.brake_until = np.where(brake, now + batch.brake_steps, st.brake_until)

@@ -22,7 +22,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
-from sdc_gym.traffic import roles
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.state import TrafficState
 
@@ -52,7 +51,6 @@ class TrafficGeometry:
     def __init__(self, road: HighwayMap, config: TrafficConfig, dt: float) -> None:
         self.config = config
         self.dt = float(dt)
-        self.scripted = False  # slots with lateral offsets or drifts (sdc_gym.traffic.roles)
         self.reference = road.reference
         self.loop = float(road.length)
         self.half_loop = 0.5 * self.loop
@@ -129,8 +127,6 @@ class TrafficGeometry:
             rate *= 30.0 * shift / duration
             d[env, :, car] += step
             d_dot[env, :, car] += rate
-        if self.scripted:  # road objects' offsets in their lane, animals' walk across
-            roles.lateral_terms(state, base + k, self.dt, d, d_dot)
         return d, d_dot
 
     # ------------------------------------------------------------------ segments

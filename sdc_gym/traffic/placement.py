@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 
 from sdc_gym.traffic.config import MPH
 from sdc_gym.traffic.idm import desired_gap, max_speed_for_gap
-from sdc_gym.traffic.state import IDLE, NEVER, PARKED, TRAFFIC, TrafficState
-from sdc_gym.traffic.vehicle_types import KINDS, VEHICLE_TYPES
+from sdc_gym.traffic.state import IDLE, NEVER, TrafficState
+from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES
 
 # The kernels take the batch (sdc_gym.traffic.batch.TrafficBatch, which imports them) for
 # its constants: typed by name only, so that the modules do not import each other.
@@ -36,7 +36,7 @@ def new_car(batch: TrafficBatch, st: TrafficState, r: int, i: int, type_index: i
             rng: np.random.Generator) -> None:
     """Write a fresh car into slot ``i`` of row ``r``."""
     cfg = batch.config
-    vtype = KINDS[type_index]
+    vtype = VEHICLE_TYPES[type_index]
     st.type_index[r, i] = type_index
     st.length[r, i] = vtype.length
     st.width[r, i] = vtype.width
@@ -91,7 +91,7 @@ def find_spot(batch: TrafficBatch, st: TrafficState, r: int, placed: NDArray[np.
     """
     cfg = batch.config
     reference = batch.reference
-    vtype = KINDS[type_index]
+    vtype = VEHICLE_TYPES[type_index]
     s_all, d_all, v_all, occupies, half, a_all, tsab_all = _row_objects(batch, st, r)
     idx = np.append(np.flatnonzero(placed), st.cars)  # the ego is object n
     s_o = s_all[idx]
@@ -192,7 +192,7 @@ def _free_spot(batch: TrafficBatch, st: TrafficState, r: int, i: int, rel: Float
     """Reset: a centre (s relative to the ego) and lane for car ``i``, drawn uniformly
     over the room that keeps ``spawn_min_gap`` to cars ``0 .. i-1`` and the ego."""
     cfg = batch.config
-    half = 0.5 * KINDS[type_index].length
+    half = 0.5 * VEHICLE_TYPES[type_index].length
     others = np.append(rel[:i], 0.0)  # placed cars, then the ego
     reach = (np.append(st.half_length[r, :i], batch.ego_half_length) + half
              + cfg.spawn_min_gap) / batch.geometry.min_scale
@@ -227,8 +227,6 @@ def _settle_speeds(batch: TrafficBatch, st: TrafficState, r: int) -> None:
     scale = 1.0 + batch.geometry.curvature(s_all[:n]) * st.d[r]
     speed = st.speed[r]
     for i in np.argsort(-rel[:n], kind="stable"):
-        if st.role[r, i] != TRAFFIC:  # objects stand still; parked slots are nowhere
-            continue
         lane = st.origin[r, i]
         ahead = occupies[:, lane] & (rel > rel[i])
         if not ahead.any():
@@ -243,20 +241,17 @@ def _settle_speeds(batch: TrafficBatch, st: TrafficState, r: int) -> None:
 
 def reset_row(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Generator,
               ego_s: float, ego_d: float, ego_speed: float) -> None:
-    """Lay out row ``r``'s ``car_count`` cars around the ego (see the module docstring);
-    the slots beyond them (road objects') are parked.
+    """Lay out row ``r``'s ``car_count`` cars around the ego (see the module docstring).
 
     Raises ``ValueError`` if the cars cannot be placed within ``spawn_range``.
     """
     cfg = batch.config
     st.clear_rows(r, cfg.lane_change_duration)
     st.ego_s[r], st.ego_d[r], st.ego_speed[r] = float(ego_s) % batch.loop, ego_d, ego_speed
-    for i in range(cfg.car_count, st.cars):
-        park(st, r, i)
     spread_max = batch.range - 10.0
     spread = min(0.75 * batch.range / cfg.density, spread_max)
     rel = np.zeros(st.cars)
-    for i in range(cfg.car_count):
+    for i in range(st.cars):
         type_index = int(rng.choice(len(VEHICLE_TYPES), p=batch.type_p))
         while (spot := _free_spot(batch, st, r, i, rel, type_index, spread, rng)) is None:
             if spread >= spread_max:
@@ -274,24 +269,14 @@ def reset_row(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Gene
     _settle_speeds(batch, st, r)
 
 
-def park(st: TrafficState, r: int, i: int) -> None:
-    """Slot ``i`` of row ``r`` holds nothing: no lane (occupies none), no speed (a
-    scripted standstill), never recycled, not sensed and not touched (the world masks
-    it). It waits at the ego's s, left of the road."""
-    st.role[r, i] = PARKED
-    st.type_index[r, i] = 0
-    st.length[r, i], st.width[r, i] = KINDS[0].length, KINDS[0].width
-    st.half_length[r, i] = 0.5 * KINDS[0].length
-    st.a_max[r, i], st.tsab[r, i] = 1.0, 2.0
-    st.origin[r, i] = st.target_lane[r, i] = -1
-    st.s[r, i] = st.ego_s[r]
-    st.d[r, i] = -0.5 * 4.0
-    st.speed[r, i] = st.desired[r, i] = st.acc[r, i] = st.half_acc[r, i] = 0.0
-    st.omega[r, i] = st.phase[r, i] = st.wander_speed[r, i] = 0.0
-    st.d_offset[r, i] = st.lateral_rate[r, i] = 0.0
-    st.lateral_from[r, i] = st.lateral_until[r, i] = 0
-    st.hold_lane[r, i] = 1
-    st.forced_acc[r, i], st.forced_until[r, i] = 0.0, IDLE
-    st.lc_start[r, i], st.lc_end[r, i] = NEVER, IDLE
-    st.pending[r, i], st.held[r, i] = -1, 0
-    st.brake_until[r, i] = st.cut_in_until[r, i] = st.respawn_wait[r, i] = 0
+def reset_row_to(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Generator,
+                 ego_s: float, ego_d: float, ego_speed: float, s: FloatArray,
+                 lane: IntArray, speed: FloatArray, desired: FloatArray,
+                 types: IntArray) -> None:
+    """Row ``r`` from explicit cars (``len(s) == st.cars``)."""
+    st.clear_rows(r, batch.config.lane_change_duration)
+    st.ego_s[r], st.ego_d[r], st.ego_speed[r] = (float(ego_s) % batch.loop, float(ego_d),
+                                                 float(ego_speed))
+    for i in range(st.cars):
+        new_car(batch, st, r, i, int(types[i]), float(s[i] % batch.loop), int(lane[i]),
+                float(speed[i]), float(desired[i]), rng)

@@ -1,35 +1,41 @@
-"""What the traffic kernels do differently for scenario cars, road objects and parked slots.
+"""Scenario cars, road objects and parked slots, on top of the traffic kernels.
 
-Random traffic has only traffic cars (:data:`~sdc_gym.traffic.state.TRAFFIC`), and the
-kernels skip everything here (``TrafficBatch.scripted`` is off). Once a batch holds a
-scenario or road events, these small masks and terms enter the decision and motion
-kernels (:mod:`sdc_gym.traffic.decisions`, :mod:`sdc_gym.traffic.kinematics`); with every
-slot a plain traffic car they change nothing, to the bit:
+Random traffic has only traffic cars (:data:`~sdc_gym.traffic.state.TRAFFIC`) and none of
+this runs (``TrafficBatch.scripted`` is off). Once a batch holds a scenario or road events,
+:class:`~sdc_gym.traffic.batch.TrafficBatch` calls these functions around the kernels,
+which stay as they are (the same code for random and scripted traffic): the roles are
+expressed through the values the kernels already read, and a few overrides after them.
 
 * a **road object** (:data:`~sdc_gym.traffic.state.OBJECT`: a barrier of a closed lane,
-  fallen cargo, an animal) occupies every lane its footprint touches (so IDM followers in
-  those lanes brake for it and lane changes into them wait), is never recycled and never
-  decides: its acceleration is its scripted one (0, standing still);
-* a **parked** slot (:data:`~sdc_gym.traffic.state.PARKED`) occupies no lane: nobody
-  follows it, nobody waits for it, it is never recycled (nor sensed, nor touched: the
-  world masks it);
-* a car with ``hold_lane`` does not change lanes of its own; a car under a scripted
-  acceleration (``forced_acc`` until ``forced_until``: a scenario's hard braking or stop)
-  does not either, and drives at that acceleration whatever its leader;
-* a traffic car stuck behind a road object (its leader, within
-  :data:`STUCK_BEHIND_OBJECT_M`) may merge into the next lane at any speed, also from a
-  standstill (the normal rule needs ``lane_change_min_speed``): the merge at a closed lane.
+  fallen cargo, an animal, a stalled car) is a slot standing in the lanes its footprint
+  touches (``origin`` and ``target_lane``: :func:`footprint_lanes`), so IDM followers in
+  those lanes brake for it and lane changes into them wait for it, as for a stopped car;
+  it never recycles (its respawn wait never ends), never changes lanes (any the kernels
+  start are undone: :func:`after_decision`) and its acceleration is its scripted one
+  (0: it stands); its lateral position is its own (``base_d`` plus an animal's walk at
+  ``lateral_rate``: :func:`object_lateral`);
+* a **parked** slot (:data:`~sdc_gym.traffic.state.PARKED`) is in lane -1, which no lane
+  test matches: nobody follows it, nobody waits for it; it stands, is never recycled, and
+  the world neither senses nor touches it;
+* a car with ``hold_lane`` (a scenario's, unless it has ``lane_changes``) does not start
+  lane changes of its own, nor does a car under a scripted acceleration (``forced_acc``
+  until step ``forced_until``: a scenario's hard braking or stop), which drives at that
+  acceleration whatever its leader;
+* a traffic car stuck behind a road object (standing, its leader an object within
+  :data:`STUCK_BEHIND_OBJECT_M`) merges into a next lane that is clear by the traffic's
+  ``lane_change_clearance`` (:func:`merge_stuck`, called by the road events' controller):
+  the kernels' own rule needs ``lane_change_min_speed``, the merge at a closed lane.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.traffic.gather import gather
-from sdc_gym.traffic.state import OBJECT, PARKED, TRAFFIC, TrafficState
+from sdc_gym.traffic.state import IDLE, NEVER, OBJECT, PARKED, TRAFFIC, TrafficState
 
 TrafficBatch = Any  # sdc_gym.traffic.batch.TrafficBatch (typed by name: no import circle)
 
@@ -37,78 +43,119 @@ FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 STUCK_BEHIND_OBJECT_M = 40.0
-"""m (bumper gap): a car whose leader is a road object this close may merge at any speed."""
-MIN_DESIRED_SPEED = 0.1
-"""m/s: IDM's desired speed of slots that do not drive (objects, parked), as the ego's."""
+"""m (bumper gap): a standing car whose leader is a road object this close may merge."""
+STILL_DESIRED_SPEED = 0.1
+"""m/s: the IDM desired speed of slots that do not drive (objects, parked), as the ego's
+floor; their scripted acceleration overrides what IDM makes of it."""
+NEVER_RECYCLED = 2**61
+"""A respawn wait no episode outlasts (steps): the slot is never recycled."""
 
 
-def occupy_footprints(batch: TrafficBatch, st: TrafficState, cars: NDArray[np.bool_]) -> None:
-    """Road objects occupy the lanes their footprint touches (``cars``: ``(envs, lanes,
-    cars)``, written in place); parked slots none."""
-    role = st.role[:, None, :]
-    is_object = role == OBJECT
-    if np.count_nonzero(is_object):
-        half = 0.5 * st.width[:, None, :]
-        lane = batch.lane_column
-        low = np.floor((st.d[:, None, :] - half) / batch.lane_width)
-        high = np.floor((st.d[:, None, :] + half) / batch.lane_width)
-        np.copyto(cars, (lane >= low) & (lane <= high), where=is_object)
-    cars &= role != PARKED
+def footprint_lanes(d: float, width: float, lane_width: float, lanes: int) -> tuple[int, int]:
+    """``(origin, target_lane)`` of an object at ``d`` of ``width``: the first and last lane
+    its footprint touches (equal for one lane), ``(-1, -1)`` off the road."""
+    low = math.floor((d - 0.5 * width) / lane_width)
+    high = math.floor((d + 0.5 * width) / lane_width)
+    low, high = max(low, 0), min(high, lanes - 1)
+    return (low, high) if low <= high else (-1, -1)
 
 
-def recyclable(st: TrafficState, rel: FloatArray) -> FloatArray:
-    """``rel`` of the cars, with 0 for the slots that are never recycled (objects, parked)."""
-    return np.where(st.role == TRAFFIC, rel, 0.0)
+def start_lane_change(batch: TrafficBatch, st: TrafficState, row: int, car: int, lane: int,
+                      duration: float) -> None:
+    """Car ``car`` of row ``row`` starts a lane change into ``lane`` now, for ``duration``
+    s (a scenario's cut-in, a merge at an object): what the decision kernel writes."""
+    now = int(st.step[row])
+    st.target_lane[row, car] = lane
+    st.lc_start[row, car] = now
+    st.lc_end[row, car] = now + math.ceil(duration / batch.dt - 1e-9)
+    st.lc_duration[row, car] = duration
+    st.pending[row, car], st.held[row, car] = -1, 0
 
 
-def live(st: TrafficState, rel: FloatArray) -> FloatArray:
-    """``rel`` of every object (cars, then the ego), with 0 for the parked slots: only the
-    others decide whether gaps need folding."""
-    out = rel.copy()
-    out[:, :-1] = np.where(st.role == PARKED, 0.0, rel[:, :-1])
-    return out
+def after_decision(st: TrafficState, lc_start_before: IntArray) -> None:
+    """After a decision of the envs of ``st`` (``lc_start_before``: ``lc_start`` before
+    it): undo the lane changes the kernels started for slots that hold their lane (objects,
+    parked, ``hold_lane``, a scripted acceleration in force), and put each scripted
+    acceleration in force in place of the decided one."""
+    now = st.step[:, None]
+    forced = now < st.forced_until
+    held = (st.role != TRAFFIC) | (st.hold_lane != 0) | forced
+    undo = held & (st.lc_start == now) & (lc_start_before != now)
+    if np.count_nonzero(undo):
+        st.target_lane[undo] = st.origin[undo]
+        st.lc_start[undo] = NEVER
+        st.lc_end[undo] = IDLE
+    if np.count_nonzero(forced):
+        st.acc[forced] = st.forced_acc[forced]
+        st.half_acc[forced] = 0.5 * st.forced_acc[forced]
 
 
-def desired_speeds(st: TrafficState) -> FloatArray:
-    """IDM's desired speeds, floored at :data:`MIN_DESIRED_SPEED` (objects stand still)."""
-    return np.maximum(st.desired, MIN_DESIRED_SPEED)
-
-
-def stuck_behind_object(st: TrafficState, leaders: IntArray, own: IntArray,
-                        own_gap: FloatArray) -> NDArray[np.bool_]:
-    """``(envs, cars)``: the car's own leader is a road object within
-    :data:`STUCK_BEHIND_OBJECT_M` (``leaders``: ``(envs, lanes, cars)`` object indices,
-    ``own`` the lane of each car's own leader, ``own_gap`` its bumper gap)."""
-    role_all = np.concatenate([st.role, np.full((st.envs, 1), TRAFFIC)], axis=1)
-    leader = gather(leaders.transpose(0, 2, 1), own.transpose(0, 2, 1))[..., 0]
-    return (gather(role_all, leader) == OBJECT) & (own_gap[:, 0] < STUCK_BEHIND_OBJECT_M)
-
-
-def free_to_decide(st: TrafficState, now: IntArray) -> NDArray[np.bool_]:
-    """``(envs, cars)``: traffic cars without ``hold_lane`` and without a scripted
-    acceleration in force: the ones that may start lane changes of their own."""
-    return (st.role == TRAFFIC) & (st.hold_lane == 0) & (now >= st.forced_until)
-
-
-def scripted_acceleration(st: TrafficState, now: IntArray, acc: FloatArray) -> FloatArray:
-    """The decided accelerations, with each scripted one in force instead."""
-    return np.where(now < st.forced_until, st.forced_acc, acc)
-
-
-def lateral_terms(state: Any, frames: IntArray, dt: float, d: FloatArray,
-                  d_dot: FloatArray) -> None:
-    """Add each slot's lateral offset and scripted drift to ``d`` and ``d_dot``
-    (``(envs, frames, cars)``, in place) at the absolute steps ``frames``
-    (``(envs, frames, 1)``): ``d_offset + lateral_rate * dt * (clip(step, from, until) -
-    from)``, and the rate while the step is in ``[from, until)``."""
-    moved = (state.d_offset != 0.0) | (state.lateral_rate != 0.0)
-    if not np.count_nonzero(moved):
+def object_lateral(st: TrafficState, step0: IntArray, dt: float, d: FloatArray,
+                   d_dot: FloatArray) -> None:
+    """The road objects' own lateral positions in a window's ``d`` and ``d_dot``
+    (``(envs, frames, cars)``, in place; frame ``k`` is step ``step0 + k + 1``):
+    ``base_d + lateral_rate * dt * (clip(step, from, until) - from)`` and the rate while
+    the step is in ``[from, until)``; the state's ``d`` at the window's end."""
+    env, car = np.nonzero(st.role == OBJECT)
+    if not len(env):
         return
-    env, car = np.nonzero(moved)
-    steps = np.broadcast_to(frames, (*d.shape[:2], 1))[env, :, 0]
-    start = state.lateral_from[env, car][:, None]
-    until = state.lateral_until[env, car][:, None]
-    rate = state.lateral_rate[env, car][:, None]
+    frames = d.shape[1]
+    steps = step0[env][:, None] + np.arange(1, frames + 1)[None, :]
+    start = st.lateral_from[env, car][:, None]
+    until = st.lateral_until[env, car][:, None]
+    rate = st.lateral_rate[env, car][:, None]
     walked = (np.minimum(np.maximum(steps, start), until) - start) * dt
-    d[env, :, car] += state.d_offset[env, car][:, None] + rate * walked
-    d_dot[env, :, car] += np.where((steps >= start) & (steps < until), rate, 0.0)
+    d[env, :, car] = st.base_d[env, car][:, None] + rate * walked
+    d_dot[env, :, car] = np.where((steps >= start) & (steps < until), rate, 0.0)
+    st.d[env, car] = d[env, -1, car]
+
+
+def object_d(st: TrafficState, row: int, car: int, dt: float) -> float:
+    """A road object's d at its row's current step."""
+    step = int(st.step[row])
+    start, until = int(st.lateral_from[row, car]), int(st.lateral_until[row, car])
+    walked = (min(max(step, start), until) - start) * dt
+    return float(st.base_d[row, car] + st.lateral_rate[row, car] * walked)
+
+
+def merge_stuck(batch: TrafficBatch, st: TrafficState, row: int) -> None:
+    """Traffic cars of row ``row`` standing behind a road object (within
+    :data:`STUCK_BEHIND_OBJECT_M`) start a lane change into a next lane clear by
+    ``lane_change_clearance`` (centre to centre, every slot and the ego), the lane
+    towards the middle first."""
+    cfg = batch.config
+    reference = batch.reference
+    objects = np.flatnonzero(st.role[row] == OBJECT)
+    if not len(objects):
+        return
+    stuck = np.flatnonzero((st.role[row] == TRAFFIC) & (st.hold_lane[row] == 0)
+                           & (st.lc_end[row] == IDLE)
+                           & (st.speed[row] < cfg.lane_change_min_speed)
+                           & (int(st.step[row]) >= st.forced_until[row]))
+    if not len(stuck):
+        return
+    live = st.role[row] != PARKED
+    lanes_of = np.stack([st.origin[row], st.target_lane[row]])
+    ego_low, ego_high = footprint_lanes(float(st.ego_d[row]), batch.ego_width,
+                                        batch.lane_width, batch.lanes)
+    middle = 0.5 * (batch.lanes - 1)
+    for car in stuck.tolist():
+        lane = int(st.origin[row, car])
+        ahead = reference.s_difference(st.s[row, objects], st.s[row, car])
+        gap = ahead - st.half_length[row, objects] - st.half_length[row, car]
+        in_lane = (lanes_of[0, objects] <= lane) & (lanes_of[1, objects] >= lane)
+        if not np.any(in_lane & (ahead > 0.0) & (gap < STUCK_BEHIND_OBJECT_M)):
+            continue
+        for target in sorted((lane - 1, lane + 1), key=lambda x: abs(x - middle)):
+            if not 0 <= target < batch.lanes:
+                continue
+            there = live & ((lanes_of[0] == target) | (lanes_of[1] == target))
+            there[car] = False
+            near = np.abs(reference.s_difference(st.s[row], st.s[row, car]))
+            blocked = bool(np.any(there & (near < cfg.lane_change_clearance)))
+            ego_near = abs(float(reference.s_difference(st.ego_s[row], st.s[row, car])))
+            if ego_low <= target <= ego_high and ego_near < cfg.lane_change_clearance:
+                blocked = True
+            if not blocked:
+                start_lane_change(batch, st, row, car, target, cfg.lane_change_duration)
+                break

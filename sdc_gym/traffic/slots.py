@@ -18,7 +18,8 @@ from typing import Any
 
 import numpy as np
 
-from sdc_gym.traffic.placement import new_car, park
+from sdc_gym.traffic.placement import new_car
+from sdc_gym.traffic.roles import NEVER_RECYCLED, STILL_DESIRED_SPEED, footprint_lanes
 from sdc_gym.traffic.state import IDLE, NEVER, OBJECT, PARKED, TRAFFIC, TrafficState
 from sdc_gym.traffic.vehicle_types import KINDS
 
@@ -46,7 +47,9 @@ class SlotSpec:
         speed, desired: m/s, its speed and IDM desired speed.
         hold_lane: no lane changes of its own.
         length, width: m, a size other than its kind's (a closed lane's last piece).
-        d_offset: m right of its lane's centre (plus the wander of a traffic car).
+        d_offset: m right of its lane's centre: a road object's place across the lane
+            (its footprint's lanes are the ones it stands in); traffic cars keep to their
+            lane's centre (plus their wander).
         forced_acc, forced_until_steps: a scripted acceleration (m/s^2) in force for this
             many steps from the reset (``None``: for ever; 0: none).
         lateral_rate: m/s, a drift across the road (an animal) from ``lateral_from_steps``
@@ -106,13 +109,18 @@ def write_slot(batch: TrafficBatch, st: TrafficState, r: int, i: int, spec: Slot
         length = kind.length if spec.length is None else spec.length
         st.length[r, i], st.half_length[r, i] = length, 0.5 * length
         st.width[r, i] = kind.width if spec.width is None else spec.width
-    st.d_offset[r, i] = spec.d_offset
     until = spec.forced_until_steps
     st.forced_acc[r, i] = spec.forced_acc
     st.forced_until[r, i] = IDLE if until is None else (step + until if until else 0)
-    st.lateral_rate[r, i] = spec.lateral_rate
-    st.lateral_from[r, i] = step + spec.lateral_from_steps
-    st.lateral_until[r, i] = step + spec.lateral_until_steps
+    if spec.role == OBJECT:  # it stands (or walks) where it is, in its footprint's lanes
+        st.base_d[r, i] = (spec.lane + 0.5) * batch.lane_width + spec.d_offset
+        st.d[r, i] = st.base_d[r, i]
+        st.desired[r, i] = STILL_DESIRED_SPEED
+        st.origin[r, i], st.target_lane[r, i] = footprint_lanes(
+            float(st.base_d[r, i]), float(st.width[r, i]), batch.lane_width, batch.lanes)
+        st.lateral_rate[r, i] = spec.lateral_rate
+        st.lateral_from[r, i] = step + spec.lateral_from_steps
+        st.lateral_until[r, i] = step + spec.lateral_until_steps
     if spec.lane_change is not None:
         change = spec.lane_change
         st.target_lane[r, i] = change.target
@@ -124,8 +132,34 @@ def write_slot(batch: TrafficBatch, st: TrafficState, r: int, i: int, spec: Slot
     st.pending[r, i], st.held[r, i] = spec.pending, spec.held
     st.brake_until[r, i] = step + spec.brake_in if spec.brake_in > 0 else 0
     st.cut_in_until[r, i] = step + spec.cut_in_for if spec.cut_in_for > 0 else 0
-    st.respawn_wait[r, i] = step + spec.respawn_in if spec.respawn_in > 0 else 0
+    st.respawn_wait[r, i] = (NEVER_RECYCLED if spec.role == OBJECT else
+                             step + spec.respawn_in if spec.respawn_in > 0 else 0)
     st.spawn_count[r, i] = spec.spawn_count
+
+
+def park(st: TrafficState, r: int, i: int) -> None:
+    """Slot ``i`` of row ``r`` holds nothing: lane -1 (which no lane test matches), no
+    speed (a scripted standstill), never recycled, not sensed and not touched (the world
+    masks it). It waits at the ego's s, left of the road."""
+    st.role[r, i] = PARKED
+    st.type_index[r, i] = 0
+    st.length[r, i], st.width[r, i] = KINDS[0].length, KINDS[0].width
+    st.half_length[r, i] = 0.5 * KINDS[0].length
+    st.a_max[r, i], st.tsab[r, i] = 1.0, 2.0
+    st.origin[r, i] = st.target_lane[r, i] = -1
+    st.s[r, i] = st.ego_s[r]
+    st.d[r, i] = st.base_d[r, i] = -2.0
+    st.speed[r, i] = st.acc[r, i] = st.half_acc[r, i] = 0.0
+    st.desired[r, i] = STILL_DESIRED_SPEED
+    st.omega[r, i] = st.phase[r, i] = st.wander_speed[r, i] = 0.0
+    st.lateral_rate[r, i] = 0.0
+    st.lateral_from[r, i] = st.lateral_until[r, i] = 0
+    st.hold_lane[r, i] = 1
+    st.forced_acc[r, i], st.forced_until[r, i] = 0.0, IDLE
+    st.lc_start[r, i], st.lc_end[r, i] = NEVER, IDLE
+    st.pending[r, i], st.held[r, i] = -1, 0
+    st.brake_until[r, i] = st.cut_in_until[r, i] = 0
+    st.respawn_wait[r, i] = NEVER_RECYCLED
 
 
 def new_car_exact(batch: TrafficBatch, st: TrafficState, r: int, i: int, spec: SlotSpec,
@@ -161,7 +195,7 @@ def read_slot(st: TrafficState, r: int, i: int) -> dict[str, Any]:
         "s": float(st.s[r, i]), "d": float(st.d[r, i]), "lane": int(st.origin[r, i]),
         "speed": float(st.speed[r, i]), "desired": float(st.desired[r, i]),
         "hold_lane": bool(st.hold_lane[r, i]), "length": float(st.length[r, i]),
-        "width": float(st.width[r, i]), "d_offset": float(st.d_offset[r, i]),
+        "width": float(st.width[r, i]), "base_d": float(st.base_d[r, i]),
         "forced_acc": float(st.forced_acc[r, i]),
         "forced_until_steps": None if until >= IDLE else max(until - step, 0),
         "lateral_rate": float(st.lateral_rate[r, i]),

@@ -43,7 +43,11 @@ class TrafficState:
     ``half_acc`` (held between decisions), the lateral wander's ``omega``, ``phase`` and
     ``wander_speed``, the lane change's ``lc_start``, ``lc_end`` and ``lc_duration``, the
     wish being sustained (``pending`` lane, ``held`` decisions), the rogue timers
-    ``brake_until`` and ``cut_in_until``, and ``respawn_wait``.
+    ``brake_until`` and ``cut_in_until``, and ``respawn_wait``. Scenarios and road events
+    (:mod:`sdc_gym.traffic.roles`): the slot's ``role``, ``hold_lane``, a scripted
+    acceleration ``forced_acc`` in force until step ``forced_until``, and a road object's
+    lateral position ``base_d`` with its drift ``lateral_rate`` from step ``lateral_from``
+    to ``lateral_until``.
 
     Per env, ``(envs,)``: ``step`` (physics frames since the reset),
     ``respawn_blocked_until``, ``rogue_brake_count``, ``rogue_cut_in_count`` and the ego's
@@ -53,7 +57,7 @@ class TrafficState:
     CAR_FLOATS: ClassVar[tuple[str, ...]] = (
         "length", "width", "half_length", "a_max", "tsab", "s", "d", "speed", "desired",
         "x", "y", "heading", "vx", "vy", "kappa", "acc", "half_acc", "omega", "phase",
-        "wander_speed", "lc_duration", "forced_acc", "d_offset", "lateral_rate")
+        "wander_speed", "lc_duration", "forced_acc", "base_d", "lateral_rate")
     CAR_INTS: ClassVar[tuple[str, ...]] = (
         "ids", "spawn_count", "type_index", "origin", "target_lane", "lc_start", "lc_end",
         "pending", "held", "brake_until", "cut_in_until", "respawn_wait", "role",
@@ -86,7 +90,7 @@ class TrafficState:
     wander_speed: FloatArray
     lc_duration: FloatArray
     forced_acc: FloatArray
-    d_offset: FloatArray
+    base_d: FloatArray
     lateral_rate: FloatArray
     ids: IntArray
     spawn_count: IntArray
