@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.highway_world import HighwayWorld, incident_kinds
+from sdc_gym.scenarios.episode import CONFIG
 from sdc_gym.stack.highway.decisions import ACTION_NAMES, DecisionExecutor, HighwayDecision
 from sdc_gym.stack.highway.features import BehaviorFeatures
 from sdc_gym.stack.highway.motion import MotionBatch, MotionParameters, SeedMotionPlanner
@@ -107,9 +108,10 @@ class HighwayBehaviorWorld:
         self.last_plans: list[Any] = [None] * envs
 
     # ------------------------------------------------------------------ episodes
-    def reset_at(self, env: int, rng: np.random.Generator) -> None:
-        """Start env ``env``'s episode; all its randomness comes from ``rng``."""
-        self.world.reset_at(env, rng)
+    def reset_at(self, env: int, rng: np.random.Generator, scenario: Any = CONFIG) -> None:
+        """Start env ``env``'s episode; all its randomness comes from ``rng``; ``scenario``
+        as :meth:`HighwayWorld.reset_at` takes it."""
+        self.world.reset_at(env, rng, scenario)
         self.perception[env].reset()
         self.motion[env].reset()
         self.executor[env].reset()
@@ -216,4 +218,6 @@ class HighwayBehaviorWorld:
         info["termination_reason"] = world.done_reason[env] if final else ""
         info["summary"] = world.summary(env) if final else None
         info["behavior"] = self.behavior_info(env, action)
+        if world.traffic.object_slots:
+            info["road_events"] = world.road_events(env)
         return info
