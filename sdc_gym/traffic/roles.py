@@ -92,11 +92,12 @@ def after_decision(st: TrafficState, lc_start_before: IntArray) -> None:
 
 def object_lateral(st: TrafficState, step0: IntArray, dt: float, d: FloatArray,
                    d_dot: FloatArray) -> None:
-    """The road objects' own lateral positions in a window's ``d`` and ``d_dot``
+    """The road objects' (and parked slots') own lateral positions in a window's ``d`` and
+    ``d_dot``
     (``(envs, frames, cars)``, in place; frame ``k`` is step ``step0 + k + 1``):
     ``base_d + lateral_rate * dt * (clip(step, from, until) - from)`` and the rate while
     the step is in ``[from, until)``; the state's ``d`` at the window's end."""
-    env, car = np.nonzero(st.role == OBJECT)
+    env, car = np.nonzero(st.role != TRAFFIC)
     if not len(env):
         return
     frames = d.shape[1]

@@ -88,6 +88,9 @@ class SlotSpec:
 
 
 PARKED_SLOT = SlotSpec(PARKED, 0, 0.0, -1)
+PARKED_D = -20.0
+"""m: where a parked slot waits across the road (well left of it: no contact test can
+reach it, whatever the world does)."""
 
 
 def write_slot(batch: TrafficBatch, st: TrafficState, r: int, i: int, spec: SlotSpec,
@@ -140,7 +143,7 @@ def write_slot(batch: TrafficBatch, st: TrafficState, r: int, i: int, spec: Slot
 def park(st: TrafficState, r: int, i: int) -> None:
     """Slot ``i`` of row ``r`` holds nothing: lane -1 (which no lane test matches), no
     speed (a scripted standstill), never recycled, not sensed and not touched (the world
-    masks it). It waits at the ego's s, left of the road."""
+    masks it). It waits at the ego's s, :data:`PARKED_D` left of the road, out of reach."""
     st.role[r, i] = PARKED
     st.type_index[r, i] = 0
     st.length[r, i], st.width[r, i] = KINDS[0].length, KINDS[0].width
@@ -148,7 +151,7 @@ def park(st: TrafficState, r: int, i: int) -> None:
     st.a_max[r, i], st.tsab[r, i] = 1.0, 2.0
     st.origin[r, i] = st.target_lane[r, i] = -1
     st.s[r, i] = st.ego_s[r]
-    st.d[r, i] = st.base_d[r, i] = -2.0
+    st.d[r, i] = st.base_d[r, i] = PARKED_D
     st.speed[r, i] = st.acc[r, i] = st.half_acc[r, i] = 0.0
     st.desired[r, i] = STILL_DESIRED_SPEED
     st.omega[r, i] = st.phase[r, i] = st.wander_speed[r, i] = 0.0
