@@ -10,6 +10,8 @@
     python evaluate.py --agent "external:./path_planning" --planner-cwd build \
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
     python evaluate.py compare results/A results/B   # two runs side by side
+    python evaluate.py --scenario sdc_gym/scenarios/library   # pass/fail per scenario
+    python evaluate.py --scenario results/latest/incidents.json  # replay every incident
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
 each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
@@ -39,6 +41,10 @@ Written atomically:
                        the last seconds of the ego and nearby cars
     incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
+
+``--scenario PATH`` (a scenario file, a folder of them, or an incidents.json to replay)
+runs every agent on each scenario and prints pass or fail with the reason, into
+scenarios.csv and scenarios.json (:mod:`evaluation.scenario_runs`, ``docs/scenarios.md``).
 
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
 ``terminate_on_collision`` off, so incidents are counted and the car drives on, and reports
@@ -72,6 +78,13 @@ from evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
 from evaluation.plots import Limits
 from evaluation.profiles import stop_line_distances
 from evaluation.runner import run_episodes
+from evaluation.scenario_runs import (
+    SCENARIOS_CSV,
+    SCENARIOS_JSON,
+    run_scenarios,
+    verdict_table,
+    write_scenario_run,
+)
 from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.units import METERS_PER_MILE
@@ -133,6 +146,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         "0: no reports)")
     parser.add_argument("--stop-at-incident", action="store_true",
                         help="end each episode at its first incident")
+    parser.add_argument("--scenario", type=Path, default=None, metavar="PATH",
+                        help="run every agent on each scenario of PATH (a scenario YAML "
+                             "file, a folder of them, or an incidents.json to replay its "
+                             "incidents) and report pass/fail with the reason "
+                             "(docs/scenarios.md; default 1 seed)")
     external.add_external_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
@@ -196,7 +214,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.agents is not None:
         args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
-        episodes = args.episodes or (1 if args.endurance else DEFAULT_EPISODES)
+        episodes = args.episodes or (1 if args.endurance or args.scenario else
+                                     DEFAULT_EPISODES)
         first = args.seed or 0
         args.seeds = list(range(first, first + episodes))
     else:
@@ -316,7 +335,8 @@ def output_folder(args: argparse.Namespace) -> Path:
     """The run's folder: ``--output`` (checked: never overwritten silently), else a new
     timestamped one under results/."""
     if args.output is not None:
-        run_folders.prepare_output(args.output, args.overwrite, OWNED_NAMES)
+        run_folders.prepare_output(args.output, args.overwrite,
+                                   (*OWNED_NAMES, SCENARIOS_CSV, SCENARIOS_JSON))
         return args.output
     return run_folders.new_run_folder()
 
@@ -341,6 +361,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
     latest = args.output is None
     args.output = output_folder(args)
+    if args.scenario is not None:
+        return scenario_main(args, argv, env_id, env_config, latest)
     specs = episode_specs(args, env_id, env_config)
     workers = external.fixed_port_workers(args, args.agents, args.workers)
     console = Console()
@@ -389,6 +411,28 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                   markup=False, highlight=False)
     return {"rows": analysis.rows, "comparisons": analysis.comparisons,
             "episodes": episodes, "files": files, "output": args.output}
+
+
+def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
+                  env_config: dict[str, Any], latest: bool) -> dict[str, Any]:
+    """``--scenario``: every agent on each scenario; the verdicts printed and written."""
+    started = time.perf_counter()
+    rows, episodes = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
+                                   env_config, args.workers, not args.no_progress)
+    wall = time.perf_counter() - started
+    run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
+           "seeds": args.seeds, "scenario": str(args.scenario),
+           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall}
+    files = write_scenario_run(args.output, rows, episodes, run)
+    if latest:
+        run_folders.point_latest_at(args.output)
+    console = Console()
+    passed = sum(row["passed"] for row in rows)
+    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}").rich())
+    console.print(f"{passed} of {len(rows)} passed; {len(rows)} episode(s) in {wall:.1f} s "
+                  f"wall time; results in {args.output}: "
+                  + ", ".join(path.name for path in files), markup=False, highlight=False)
+    return {"rows": rows, "episodes": episodes, "files": files, "output": args.output}
 
 
 if __name__ == "__main__":
