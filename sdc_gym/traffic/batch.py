@@ -172,12 +172,16 @@ class TrafficBatch:
         rows = np.array([env])
         sub = st.take(rows)
         sub.kappa = self.geometry.curvature(sub.s)
-        self.geometry.update_pose(sub, self.geometry.samples_now(sub))
+        samples = (scripting.samples_now(self, sub) if self.scripted
+                   else self.geometry.samples_now(sub))
+        self.geometry.update_pose(sub, samples)
         st.put(rows, sub)
 
     # ------------------------------------------------------------------ motion
     def samples_now(self) -> TrafficSamples:
         """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``)."""
+        if self.scripted:
+            return scripting.samples_now(self, self.state)
         return self.geometry.samples_now(self.state)
 
     def advance(self, frames: int, ego_s: FloatArray, ego_d: FloatArray,

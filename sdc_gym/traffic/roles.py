@@ -137,7 +137,7 @@ def merge_stuck(batch: TrafficBatch, st: TrafficState, row: int) -> None:
         return
     live = st.role[row] != PARKED
     lanes_of = np.stack([st.origin[row], st.target_lane[row]])
-    ego_low, ego_high = footprint_lanes(float(st.ego_d[row]), batch.ego_width,
+    ego_low, ego_high = footprint_lanes(float(st.ego_d[row]), cfg.ego_width,
                                         batch.lane_width, batch.lanes)
     middle = 0.5 * (batch.lanes - 1)
     for car in stuck.tolist():

@@ -11,7 +11,8 @@ kernels alone, bit for bit as before:
 * :func:`before_decision` / :func:`after_decision`: around each decision round, the
   envs' controllers (``before_decision(batch, state, row)``: a scenario's script, the road
   events) and the roles' overrides;
-* :func:`object_lateral`: the road objects' own lateral positions in a window.
+* :func:`object_lateral` and :func:`samples_now`: the road objects' own lateral positions
+  in a window and in the current state.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ TrafficBatch = Any  # sdc_gym.traffic.batch.TrafficBatch (typed by name: no impo
 IntArray = NDArray[np.int64]
 
 __all__ = ["SlotSpec", "TrafficController", "after_decision", "before_decision",
-           "object_lateral", "reset_random_row", "reset_slots_row"]
+           "object_lateral", "reset_random_row", "reset_slots_row", "samples_now"]
 
 
 class TrafficController(Protocol):
@@ -93,6 +94,15 @@ def before_decision(batch: TrafficBatch, st: TrafficState, rows: IntArray) -> In
         if controller is not None:
             controller.before_decision(batch, st, row)
     return st.lc_start.copy()
+
+
+def samples_now(batch: TrafficBatch, st: TrafficState) -> Any:
+    """The current state as one frame of samples, road objects where they are."""
+    geometry = batch.geometry
+    base = (st.step - 1)[:, None, None]
+    d, d_dot = geometry.lateral(st, base, np.ones((1, 1, 1), dtype=np.int64))
+    object_lateral(st, st.step - 1, batch.dt, d, d_dot)
+    return geometry.pose(st.s[:, None, :], d, st.speed[:, None, :], d_dot)
 
 
 def after_decision(st: TrafficState, lc_start: IntArray) -> None:
