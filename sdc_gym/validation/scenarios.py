@@ -123,21 +123,21 @@ class _Checker:
         return float(value) if isinstance(rule, Number) and not rule.integer else (
             int(value) if isinstance(rule, Number) else value)
 
-    def flag(self, mapping: Mapping[str, Any], key: str, path: str, default: bool) -> bool:
+    def typed(self, mapping: Mapping[str, Any], key: str, path: str, default: Any,
+              kind: type, expectation: str) -> Any:
+        """``mapping[key]`` if it is a ``kind`` (else an error), ``default`` if absent."""
         if key not in mapping:
             return default
         value = mapping[key]
-        if not isinstance(value, bool):
-            raise self.fail(f"{path}.{key}" if path else key, "true or false", value)
+        if not isinstance(value, kind):
+            raise self.fail(f"{path}.{key}" if path else key, expectation, value)
         return value
 
+    def flag(self, mapping: Mapping[str, Any], key: str, path: str, default: bool) -> bool:
+        return self.typed(mapping, key, path, default, bool, "true or false")
+
     def text(self, mapping: Mapping[str, Any], key: str, path: str, default: str) -> str:
-        if key not in mapping:
-            return default
-        value = mapping[key]
-        if not isinstance(value, str):
-            raise self.fail(f"{path}.{key}" if path else key, "a string", value)
-        return value
+        return self.typed(mapping, key, path, default, str, "a string")
 
     def choice(self, mapping: Mapping[str, Any], key: str, path: str,
                choices: Sequence[str], default: str | None = None) -> str:
