@@ -172,17 +172,19 @@ class TrafficBatch:
         rows = np.array([env])
         sub = st.take(rows)
         sub.kappa = self.geometry.curvature(sub.s)
-        samples = (scripting.samples_now(self, sub) if self.scripted
-                   else self.geometry.samples_now(sub))
+        samples = self.geometry.samples_now(sub)
+        if self.scripted:
+            scripting.place_objects(self.geometry, sub, sub.step - 1, samples)
         self.geometry.update_pose(sub, samples)
         st.put(rows, sub)
 
     # ------------------------------------------------------------------ motion
     def samples_now(self) -> TrafficSamples:
         """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``)."""
+        samples = self.geometry.samples_now(self.state)
         if self.scripted:
-            return scripting.samples_now(self, self.state)
-        return self.geometry.samples_now(self.state)
+            scripting.place_objects(self.geometry, self.state, self.state.step - 1, samples)
+        return samples
 
     def advance(self, frames: int, ego_s: FloatArray, ego_d: FloatArray,
                 ego_speed: FloatArray) -> TrafficSamples:
@@ -247,9 +249,9 @@ class TrafficBatch:
         st.ego_s = ego_s[:, -1] % self.loop
         st.ego_d = ego_d[:, -1].copy()
         st.ego_speed = ego_speed[:, -1].copy()
-        if self.scripted:
-            scripting.object_lateral(st, step0, self.dt, d_out, dd_out)
         samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
+        if self.scripted:
+            scripting.place_objects(self.geometry, st, step0, samples)
         self.geometry.update_pose(st, samples)
         return samples
 

@@ -13,7 +13,7 @@ expressed through the values the kernels already read, and a few overrides after
   it never recycles (its respawn wait never ends), never changes lanes (any the kernels
   start are undone: :func:`after_decision`) and its acceleration is its scripted one
   (0: it stands); its lateral position is its own (``base_d`` plus an animal's walk at
-  ``lateral_rate``: :func:`object_lateral`);
+  ``lateral_rate``: :func:`place_objects`);
 * a **parked** slot (:data:`~sdc_gym.traffic.state.PARKED`) is in lane -1, which no lane
   test matches: nobody follows it, nobody waits for it; it stands, is never recycled, and
   the world neither senses nor touches it;
@@ -90,25 +90,26 @@ def after_decision(st: TrafficState, lc_start_before: IntArray) -> None:
         st.half_acc[forced] = 0.5 * st.forced_acc[forced]
 
 
-def object_lateral(st: TrafficState, step0: IntArray, dt: float, d: FloatArray,
-                   d_dot: FloatArray) -> None:
-    """The road objects' (and parked slots') own lateral positions in a window's ``d`` and
-    ``d_dot``
-    (``(envs, frames, cars)``, in place; frame ``k`` is step ``step0 + k + 1``):
-    ``base_d + lateral_rate * dt * (clip(step, from, until) - from)`` and the rate while
-    the step is in ``[from, until)``; the state's ``d`` at the window's end."""
+def place_objects(geometry: Any, st: TrafficState, step0: IntArray, samples: Any) -> None:
+    """The road objects (and parked slots) where they are in a window's ``samples``
+    (``(envs, frames, cars)``, written in place; frame ``k`` is step ``step0 + k + 1``):
+    at d = ``base_d + lateral_rate * dt * (clip(step, from, until) - from)``, moving across
+    at the rate while the step is in ``[from, until)``, their pose from the same
+    ``geometry.pose`` as the cars'. Whatever the kernels made of them laterally is replaced."""
     env, car = np.nonzero(st.role != TRAFFIC)
     if not len(env):
         return
-    frames = d.shape[1]
+    frames = samples.s.shape[1]
     steps = step0[env][:, None] + np.arange(1, frames + 1)[None, :]
     start = st.lateral_from[env, car][:, None]
     until = st.lateral_until[env, car][:, None]
     rate = st.lateral_rate[env, car][:, None]
-    walked = (np.minimum(np.maximum(steps, start), until) - start) * dt
-    d[env, :, car] = st.base_d[env, car][:, None] + rate * walked
-    d_dot[env, :, car] = np.where((steps >= start) & (steps < until), rate, 0.0)
-    st.d[env, car] = d[env, -1, car]
+    walked = (np.minimum(np.maximum(steps, start), until) - start) * geometry.dt
+    d = st.base_d[env, car][:, None] + rate * walked
+    d_dot = np.where((steps >= start) & (steps < until), rate, 0.0)
+    placed = geometry.pose(samples.s[env, :, car], d, samples.speed[env, :, car], d_dot)
+    for name in ("s", "d", "speed", "x", "y", "heading", "vx", "vy"):
+        getattr(samples, name)[env, :, car] = getattr(placed, name)
 
 
 def object_d(st: TrafficState, row: int, car: int, dt: float) -> float:

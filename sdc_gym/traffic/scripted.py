@@ -11,8 +11,8 @@ kernels alone, bit for bit as before:
 * :func:`before_decision` / :func:`after_decision`: around each decision round, the
   envs' controllers (``before_decision(batch, state, row)``: a scenario's script, the road
   events) and the roles' overrides;
-* :func:`object_lateral` and :func:`samples_now`: the road objects' own lateral positions
-  in a window and in the current state.
+* :func:`~sdc_gym.traffic.roles.place_objects`: the road objects where they are, in a
+  window's samples and in the current state's.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.traffic.placement import reset_row
 from sdc_gym.traffic.roles import after_decision as _after_decision
-from sdc_gym.traffic.roles import object_lateral
+from sdc_gym.traffic.roles import place_objects
 from sdc_gym.traffic.slots import SlotSpec, park, write_slot
 from sdc_gym.traffic.state import TrafficState
 from sdc_gym.traffic.vehicle_types import KINDS
@@ -33,7 +33,7 @@ TrafficBatch = Any  # sdc_gym.traffic.batch.TrafficBatch (typed by name: no impo
 IntArray = NDArray[np.int64]
 
 __all__ = ["SlotSpec", "TrafficController", "after_decision", "before_decision",
-           "object_lateral", "reset_random_row", "reset_slots_row", "samples_now"]
+           "place_objects", "reset_random_row", "reset_slots_row"]
 
 
 class TrafficController(Protocol):
@@ -94,15 +94,6 @@ def before_decision(batch: TrafficBatch, st: TrafficState, rows: IntArray) -> In
         if controller is not None:
             controller.before_decision(batch, st, row)
     return st.lc_start.copy()
-
-
-def samples_now(batch: TrafficBatch, st: TrafficState) -> Any:
-    """The current state as one frame of samples, road objects where they are."""
-    geometry = batch.geometry
-    base = (st.step - 1)[:, None, None]
-    d, d_dot = geometry.lateral(st, base, np.ones((1, 1, 1), dtype=np.int64))
-    object_lateral(st, st.step - 1, batch.dt, d, d_dot)
-    return geometry.pose(st.s[:, None, :], d, st.speed[:, None, :], d_dot)
 
 
 def after_decision(st: TrafficState, lc_start: IntArray) -> None:

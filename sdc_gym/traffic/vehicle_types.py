@@ -107,6 +107,7 @@ TYPE_WIDTHS: NDArray[np.float64] = np.array([t.width for t in KINDS])
 TYPE_COMFORT_ACCEL: NDArray[np.float64] = np.array([t.comfort_accel for t in KINDS])
 TYPE_COMFORT_DECEL: NDArray[np.float64] = np.array([t.comfort_decel for t in KINDS])
 TYPE_COLORS: NDArray[np.uint8] = np.array([t.color for t in KINDS], dtype=np.uint8)
+TYPE_MAX_SPEED_MPH: NDArray[np.float64] = np.array([t.max_speed_mph for t in KINDS])
 
 
 def mix_weights(mix: tuple[float, ...] | Mapping[str, float] | None
