@@ -9,6 +9,7 @@
     python evaluate.py --endurance 50        # 50 laps in ONE episode, driving on after incidents
     python evaluate.py --agent "external:./path_planning" --planner-cwd build \
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
+    python evaluate.py --seeds $(seq 0 999) --ray auto   # Ray tasks on a running cluster
     python evaluate.py compare results/A results/B   # two runs side by side
     python evaluate.py --scenario sdc_gym/scenarios/library   # pass/fail per scenario
     python evaluate.py --scenario results/latest/incidents.json  # replay every incident
@@ -41,6 +42,12 @@ Written atomically:
                        the last seconds of the ego and nearby cars
     incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
+
+Episodes run in worker processes (``--workers``), or as Ray tasks with ``--ray``: on a
+running cluster (``auto``, ``HOST:PORT``) or on a local one started for the run and shut
+down at its end (docs/ray.md). An episode that raises, or whose worker dies, is reported
+with its seed and reason (printed, and in ``summary.json``'s ``run.failures`` with its
+traceback); the other episodes still run and are written, and the exit status is 1.
 
 ``--scenario PATH`` (a scenario file, a folder of them, or an incidents.json to replay)
 runs every agent on each scenario and prints pass or fail with the reason, into
@@ -87,6 +94,7 @@ from evaluation.scenario_runs import (
 )
 from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
+from sdc_gym.ray import LOCAL
 from sdc_gym.units import METERS_PER_MILE
 from sdc_gym.validation.text_files import read_yaml
 
@@ -180,9 +188,15 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--overwrite", action="store_true",
                         help="write into a non-empty --output folder, replacing the result "
                              "files of the run there (other files are kept)")
-    parser.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+    parser.add_argument("--workers", type=int, default=None,
                         help="parallel worker processes (default: one per CPU core, "
-                             f"{os.cpu_count() or 1} here)")
+                             f"{os.cpu_count() or 1} here); with --ray, the cores of the "
+                             "local cluster")
+    parser.add_argument("--ray", nargs="?", const=LOCAL, default=None, metavar="ADDRESS",
+                        help="run the episodes as Ray tasks: on a running cluster "
+                             "('auto': the one started here with `ray start`, or HOST:PORT), "
+                             "or without ADDRESS on a local cluster started for the run "
+                             "(needs the extra: pip install -e \".[ray]\")")
     add_report_arguments(parser)
     parser.add_argument("--plot-seed", type=int, default=None, metavar="SEED",
                         help="the seed whose speed profiles are drawn (default: the first)")
@@ -211,6 +225,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     elif args.overwrite:
         parser.error("--overwrite needs --output (without it each run gets a new folder)")
     check_report_arguments(parser, args)
+    if args.ray is not None and args.ray != LOCAL and args.workers is not None:
+        parser.error(f"--workers sets the cores of a local cluster; the cluster at --ray "
+                     f"{args.ray} has its own: drop --workers")
+    if args.ray is not None and not args.ray.strip():
+        parser.error("--ray ADDRESS must be 'auto' or HOST:PORT (or no ADDRESS: a local "
+                     "cluster), got an empty string")
     if args.agents is not None:
         args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
@@ -359,20 +379,36 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
+    workers = external.fixed_port_workers(args, args.agents, args.workers or os.cpu_count()
+                                          or 1)
+    backend = None
+    if args.ray is not None:
+        if external.fixed_port_workers(args, args.agents, 2) == 1:
+            raise SystemExit("--ray runs episodes in parallel, and external planners on a "
+                             "fixed port would collide: put {port} in the command")
+        backend = ray_backend(args.ray, args.workers)
     latest = args.output is None
     args.output = output_folder(args)
     if args.scenario is not None:
-        return scenario_main(args, argv, env_id, env_config, latest)
+        return scenario_main(args, argv, env_id, env_config, latest, workers, backend)
     specs = episode_specs(args, env_id, env_config)
-    workers = external.fixed_port_workers(args, args.agents, args.workers)
     console = Console()
     if args.wide and not console.is_terminal:  # logs: do not squeeze the wide table
         console = Console(width=260)
 
     started = time.perf_counter()
-    with external.planner_maps(args, probe.road):
-        episodes = run_episodes(specs, workers=workers, progress=not args.no_progress)
+    try:
+        with external.planner_maps(args, probe.road):
+            runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
+                                backend=backend)
+    except ConnectionError as error:  # --ray ADDRESS with no cluster there
+        raise SystemExit(f"--ray {args.ray}: {error}") from None
     wall = time.perf_counter() - started
+    episodes, failures = runs.results, runs.failures
+    if not episodes:
+        raise SystemExit(f"every episode failed ({len(failures)}); nothing to analyse:\n"
+                         + "\n".join(f"{failure.agent} seed {failure.seed}: {failure.reason}"
+                                     for failure in failures))
 
     analysis = analyse(episodes, statistics_settings(args))
     laps = env_config["laps"]
@@ -381,10 +417,13 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     title = f"{env_id}: seed(s) {seeds} x {mode}"
     run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
            "seeds": args.seeds, "laps": laps, "endurance": bool(args.endurance),
-           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall}
+           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall,
+           "ray": args.ray, "failures": [failure.as_dict() for failure in failures]}
     settings = [("env", env_id), ("seeds", seeds), ("laps", mode),
                 ("agents", " ".join(args.agents)), ("command", run["command"]),
                 ("wall time", f"{wall:.1f} s, {len(episodes)} episode(s)")]
+    settings += [(f"failed: {failure.agent} seed {failure.seed}", failure.reason)
+                 for failure in failures]
     plot_options = None if args.no_plots else PlotOptions(
         probe.road, Limits.from_rules(probe.rules),
         stop_line_distances(probe.road, probe.start_s, laps), args.plot_seed, probe.ego_shape)
@@ -406,23 +445,44 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
                           markup=False, highlight=False)
     where = f"{args.output}" + (f" (= {run_folders.RESULTS_ROOT / run_folders.LATEST})"
                                 if latest else "")
-    console.print(f"{len(episodes)} episode(s) in {wall:.1f} s wall time; results in "
+    for failure in failures:  # raised, or their worker died: no result (summary.json: why)
+        console.print(f"{failure.agent} seed {failure.seed} failed: {failure.reason}",
+                      markup=False, highlight=False)
+    failed = f" ({len(failures)} failed, listed above)" if failures else ""
+    console.print(f"{len(episodes)} episode(s){failed} in {wall:.1f} s wall time; results in "
                   f"{where}: " + ", ".join(path.name for path in files),
                   markup=False, highlight=False)
     return {"rows": analysis.rows, "comparisons": analysis.comparisons,
-            "episodes": episodes, "files": files, "output": args.output}
+            "episodes": episodes, "failures": failures, "files": files,
+            "output": args.output}
+
+
+def ray_backend(address: str, workers: int | None) -> Any:
+    """The Ray backend for ``--ray`` (a clear error without the optional extra)."""
+    try:
+        from evaluation.ray_backend import RayBackend
+        from sdc_gym.ray import START_A_CLUSTER, unreachable
+    except ImportError as error:
+        raise SystemExit(f"--ray needs Ray: pip install -e \".[ray]\" ({error})") from None
+    problem = None if address == LOCAL else unreachable(address)
+    if problem is not None:  # before any folder is made
+        raise SystemExit(f"--ray {address}: {problem}; {START_A_CLUSTER}")
+    return RayBackend(address, num_cpus=workers)
 
 
 def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
-                  env_config: dict[str, Any], latest: bool) -> dict[str, Any]:
+                  env_config: dict[str, Any], latest: bool, workers: int,
+                  backend: Any) -> dict[str, Any]:
     """``--scenario``: every agent on each scenario; the verdicts printed and written."""
     started = time.perf_counter()
-    rows, episodes = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
-                                   env_config, args.workers, not args.no_progress)
+    rows, episodes, failures = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
+                                             env_config, workers, not args.no_progress,
+                                             backend)
     wall = time.perf_counter() - started
     run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
            "seeds": args.seeds, "scenario": str(args.scenario),
-           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall}
+           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall,
+           "ray": args.ray, "failures": [failure.as_dict() for failure in failures]}
     files = write_scenario_run(args.output, rows, episodes, run)
     if latest:
         run_folders.point_latest_at(args.output)
@@ -432,8 +492,10 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
     console.print(f"{passed} of {len(rows)} passed; {len(rows)} episode(s) in {wall:.1f} s "
                   f"wall time; results in {args.output}: "
                   + ", ".join(path.name for path in files), markup=False, highlight=False)
-    return {"rows": rows, "episodes": episodes, "files": files, "output": args.output}
+    return {"rows": rows, "episodes": episodes, "failures": failures, "files": files,
+            "output": args.output}
 
 
 if __name__ == "__main__":
-    main()
+    # Exit status 1 when episodes failed (their results are still written).
+    sys.exit(1 if main().get("failures") else 0)

@@ -1,9 +1,17 @@
-"""Train a stable-baselines3 policy on an sdc-gym env; every run gets its own folder.
+"""Train a policy on an sdc-gym env (stable-baselines3, or RLlib and Ray Tune); every run
+gets its own folder.
 
     python train.py --config configs/train_highway_behavior.yaml --output runs/dqn_highway
     python train.py --config configs/train_highway_behavior.yaml --algo dqn --output runs/dqn
     python train.py --config ... --output runs/x --hp learning_rate=1e-4 --hp n_steps=256
     python train.py --output runs/dqn_highway --resume    # continue after an interruption
+    python train.py --framework rllib --config ... --algo ppo --output runs/ppo_rllib
+    python train.py --tune configs/tune/highway_ppo.yaml --config ... --output runs/sweep
+
+``--framework rllib`` trains with RLlib on a Ray cluster (``--ray ADDRESS``, default a
+local one for the run; :mod:`training.rllib_trainer`), hyperparameters from
+``configs/hyperparams/rllib_<algo>.yaml``; ``--tune SWEEP.yaml`` sweeps them with Ray Tune
+(:mod:`training.tune_sweep`). Both need the extra ``pip install -e ".[ray]"``.
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
 ``algo``, ``timesteps``, ``n_envs``, ``seed``, ``checkpoint_every`` and ``eval``
@@ -46,6 +54,7 @@ import sdc_gym  # noqa: F401  (registers the env ids)
 from agents import checkpoints as ckpt
 from evaluation.files import atomic_write_text
 from sdc_gym.config import ConfigError
+from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
     ALGORITHMS,
     EVAL_DEFAULTS,
@@ -53,10 +62,16 @@ from sdc_gym.validation.run_config import (
     check_run_config,
 )
 from sdc_gym.validation.text_files import parse_yaml
-from sdc_gym.validation.text_files import read_yaml as read_yaml_file
+from training.driving_metrics import driving_metrics
+from training.yaml_files import read_yaml
 
+RLLIB_ALGORITHMS = ("ppo", "dqn")
+"""RLlib's (``--framework rllib``; ``training.rllib_config.ALGORITHMS``); ``ALGORITHMS``
+are stable-baselines3's (``--framework sb3``, the default)."""
+FRAMEWORKS = ("sb3", "rllib")
 HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
-RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every"}
+RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
+            "framework"}
 CHECKPOINT_EVERY = 10_000
 DEFAULT_TIMESTEPS = 100_000
 DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
@@ -67,7 +82,18 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--config", type=Path, default=None, help="run config YAML")
     parser.add_argument("--env", default=None, help="env id (overrides the config's)")
-    parser.add_argument("--algo", default=None, choices=ALGORITHMS)
+    parser.add_argument("--algo", default=None,
+                        choices=sorted(set(ALGORITHMS) | set(RLLIB_ALGORITHMS)),
+                        help=f"sb3: {', '.join(ALGORITHMS)}; rllib: "
+                             f"{', '.join(RLLIB_ALGORITHMS)} (default: the config's, else ppo)")
+    parser.add_argument("--framework", default=None, choices=FRAMEWORKS,
+                        help="sb3 (stable-baselines3, default) or rllib (RLlib on Ray)")
+    parser.add_argument("--tune", type=Path, default=None, metavar="SWEEP_YAML",
+                        help="a Ray Tune sweep (search space, scheduler), e.g. "
+                             "configs/tune/highway_ppo.yaml (RLlib)")
+    parser.add_argument("--ray", default=None, metavar="ADDRESS",
+                        help="the Ray cluster of an RLlib run: 'auto' or HOST:PORT (default: "
+                             "a local cluster started for the run)")
     parser.add_argument("--timesteps", type=int, default=None, help="total env steps")
     parser.add_argument("--n-envs", type=int, default=None, help="parallel envs (processes)")
     parser.add_argument("--seed", type=int, default=None)
@@ -98,6 +124,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         value = getattr(args, name)
         if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+    if args.tune is not None and args.framework == "sb3":
+        parser.error("--tune sweeps with Ray Tune over RLlib runs: drop --framework sb3")
+    if args.ray is not None and args.framework == "sb3":
+        parser.error("--ray is for RLlib runs (--framework rllib); SB3 runs on this machine")
     if args.resume_without_buffer and not args.resume:
         parser.error("--resume-without-buffer goes with --resume")
     return args
@@ -128,26 +158,25 @@ def apply_overrides(params: dict[str, Any], overrides: list[str]) -> dict[str, A
     return params
 
 
-def load_hyperparams(algo: str, env_id: str) -> dict[str, Any]:
-    """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` ({} if the
-    file has no entry for it: SB3's defaults); every offered algorithm has its file."""
-    path = HYPERPARAMS_DIR / f"{algo}.yaml"
+def hyperparams_name(framework: str, algo: str) -> str:
+    """The hyperparameter file's name: ``<algo>`` (SB3) or ``rllib_<algo>``."""
+    return algo if framework == "sb3" else f"{framework}_{algo}"
+
+
+def load_hyperparams(algo: str, env_id: str, framework: str = "sb3") -> dict[str, Any]:
+    """The hyperparameters for ``env_id`` in ``configs/hyperparams/<algo>.yaml`` (RLlib:
+    ``rllib_<algo>.yaml``; {} if the file has no entry for it: the library's defaults);
+    every offered algorithm has its file."""
+    path = HYPERPARAMS_DIR / f"{hyperparams_name(framework, algo)}.yaml"
     if not path.is_file():
-        raise SystemExit(f"{path}: no hyperparameter file for --algo {algo}")
+        raise SystemExit(f"{path}: no hyperparameter file for --algo {algo} "
+                         f"(--framework {framework})")
     table = read_yaml(path)
     entry = table.get(env_id) or {}
     if not isinstance(entry, dict):
         raise SystemExit(f"{path}: the entry for {env_id} must be a mapping of "
                          f"hyperparameters, got {entry!r}")
     return dict(entry)
-
-
-def read_yaml(path: Path) -> dict[str, Any]:
-    """A YAML mapping (UTF-8, YAML 1.2 numbers), or SystemExit saying what is wrong."""
-    data = read_yaml_file(path, "YAML file", SystemExit) or {}
-    if not isinstance(data, dict):
-        raise SystemExit(f"{path}: expected a mapping, got {type(data).__name__}")
-    return data
 
 
 def first_given(*values: Any) -> Any:
@@ -160,8 +189,10 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
 
     Each value comes from the command line, else the run config (``--config``), else the
     hyperparameter file's entry for the env (``timesteps``, ``n_envs``), else the default;
-    then every value is checked (:mod:`sdc_gym.validation.run_config`) and SystemExit
-    names the key, the value and what is valid.
+    for ``--framework rllib`` and ``--tune`` too (the algorithm: ``--algo``, else the
+    sweep file's, else the run config's). Then every value is checked
+    (:mod:`sdc_gym.validation.run_config`; RLlib's hyperparameters by
+    :mod:`training.rllib_config`) and SystemExit names the key, the value and what is valid.
     """
     saved = args.output / "config.yaml"
     if args.resume:
@@ -169,6 +200,13 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
             raise SystemExit(f"--resume: no run to resume in {args.output} (no config.yaml)")
         config = read_yaml(saved)
         config.setdefault("checkpoint_every", CHECKPOINT_EVERY)  # runs from before it was kept
+        config.setdefault("framework", "sb3")
+        if args.tune is not None:
+            raise SystemExit(f"--resume: the run in {args.output} keeps its own settings "
+                             f"(a sweep's in its config.yaml): drop --tune")
+        if args.framework is not None and args.framework != config["framework"]:
+            raise SystemExit(f"--resume: the run in {args.output} is a --framework "
+                             f"{config['framework']} run, not {args.framework}")
         if args.checkpoint_every is not None:
             config["checkpoint_every"] = args.checkpoint_every
         validate(config, str(saved))
@@ -182,13 +220,23 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         raise SystemExit(f"{args.config}: unknown keys {sorted(unknown)}; valid: "
                          f"{sorted(RUN_KEYS)}")
     env_id = first_given(args.env, data.get("env"), DEFAULT_ENV)
-    algo = first_given(args.algo, data.get("algo"), "ppo")
-    if algo not in ALGORITHMS:
-        raise SystemExit(f"{source}: config key 'algo' must be one of {list(ALGORITHMS)}, "
-                         f"got {algo!r}")
+    framework = first_given(args.framework, data.get("framework"),
+                            "rllib" if args.tune is not None else "sb3")
+    _check_choice(Choice(FRAMEWORKS), framework, source, "framework")
+    if args.tune is not None and framework != "rllib":
+        raise SystemExit(f"{source}: --tune sweeps RLlib runs; config key 'framework' "
+                         f"must be 'rllib' with it, got {framework!r}")
+    sweep = None
+    if args.tune is not None:
+        from training.tune_sweep import read_sweep
+
+        sweep = read_sweep(args.tune)
+    algo = first_given(args.algo, (sweep or {}).get("algo"), data.get("algo"), "ppo")
+    _check_choice(Choice(framework_algorithms(framework)), algo, source, "algo",
+                  f" for framework {framework}")
     if not isinstance(env_id, str):
         raise SystemExit(f"{source}: config key 'env' must be an env id, got {env_id!r}")
-    hyper = apply_overrides(load_hyperparams(algo, env_id), args.hp)
+    hyper = apply_overrides(load_hyperparams(algo, env_id, framework), args.hp)
     hyper_n_envs, hyper_timesteps = hyper.pop("n_envs", None), hyper.pop("timesteps", None)
     evaluation = data.get("eval")
     evaluation = ({**EVAL_DEFAULTS, **evaluation} if isinstance(evaluation, dict)
@@ -198,6 +246,7 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
     config = {
         "env": env_id,
         "config": first_given(data.get("config"), {}),
+        "framework": framework,
         "algo": algo,
         "seed": first_given(args.seed, data.get("seed"), 0),
         "timesteps": first_given(args.timesteps, data.get("timesteps"), hyper_timesteps,
@@ -209,18 +258,41 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         "checkpoint_every": first_given(args.checkpoint_every, data.get("checkpoint_every"),
                                         CHECKPOINT_EVERY),
     }
+    if sweep is not None:
+        config["tune"] = sweep
     validate(config, source)
     return config
 
 
+def framework_algorithms(framework: str) -> tuple[str, ...]:
+    """The algorithms train.py offers with ``framework``."""
+    return ALGORITHMS if framework == "sb3" else RLLIB_ALGORITHMS
+
+
+def _check_choice(rule: Choice, value: Any, source: str, key: str, context: str = "") -> None:
+    """SystemExit naming the run config's ``key``, ``value`` and the valid choices."""
+    expectation = rule.problem(value)
+    if expectation is not None:
+        raise SystemExit(f"{source}: config key {key!r} must be {expectation}{context}, "
+                         f"got {value!r}")
+
+
 def validate(config: dict[str, Any], source: str) -> None:
-    """Every value of the run config, its hyperparameters against the algorithm, and the
-    env config by making the env once here, before any env process starts (a bad key is
-    one clear error, not a worker's ConnectionResetError)."""
+    """Every value of the run config, its hyperparameters against the algorithm (SB3's
+    constructor, or RLlib's config methods), and the env config by making the env once
+    here, before any env process or Ray cluster starts (a bad key is one clear error, not
+    a worker's ConnectionResetError)."""
+    framework = config.get("framework", "sb3")
+    _check_choice(Choice(FRAMEWORKS), framework, source, "framework")
+    _check_choice(Choice(framework_algorithms(framework)), config.get("algo"), source, "algo",
+                  f" for framework {framework}")
     try:
         check_run_config(config, source, registered=lambda env_id: env_id in gym.registry)
-        check_hyperparams(algorithm_class(config["algo"]), config["hyperparams"],
-                          f"{source} (hyperparameters)")
+        if framework == "rllib":
+            check_rllib_config(config, source)
+        else:
+            check_hyperparams(algorithm_class(config["algo"]), config["hyperparams"],
+                              f"{source} (hyperparameters)")
         env = gym.make(config["env"], config=config["config"])
         env.close()
     except (ConfigError, gym.error.Error) as error:
@@ -263,24 +335,8 @@ def driving_callback() -> Any:
         def _on_step(self) -> bool:
             for info, done in zip(self.locals["infos"], self.locals["dones"], strict=True):
                 summary = info.get("summary") if done else None
-                if not summary:
-                    continue
-                incidents = summary.get("incidents", {})
-                for kind, count in incidents.items():
-                    self.logger.record_mean(f"driving/{kind}_per_episode", count)
-                self.logger.record_mean("driving/incidents_per_episode",
-                                        sum(incidents.values()))
-                self.logger.record_mean("driving/success", float(summary.get("is_success",
-                                                                             False)))
-                # Only episodes that complete a lap have lap times (the committed config's
-                # 240 s episodes never do); every episode has its distance.
-                for lap in summary.get("lap_times") or ():
-                    self.logger.record_mean("driving/lap_time_s", lap)
-                if summary.get("distance") is not None:
-                    self.logger.record_mean("driving/distance_m", summary["distance"])
-                if summary.get("mean_speed_mph") is not None:
-                    self.logger.record_mean("driving/mean_speed_mph",
-                                            summary["mean_speed_mph"])
+                for name, value in driving_metrics(summary or {}) if summary else ():
+                    self.logger.record_mean(name, value)
             return True
 
     return DrivingMetricsCallback()
@@ -299,6 +355,8 @@ def main(argv: list[str] | None = None) -> Path:
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:
         handle.write(shlex.join([sys.executable, *(sys.argv if argv is None else
                                                    ["train.py", *argv])]) + "\n")
+    if config["framework"] == "rllib":
+        return train_with_ray(config, args)
 
     algo = algorithm_class(config["algo"])
     checkpoints = args.output / "checkpoints"
@@ -312,11 +370,7 @@ def main(argv: list[str] | None = None) -> Path:
             raise SystemExit(f"--resume: {error}") from None
     vec_env = make_vec_env(config, config["n_envs"], config["seed"], args.vectorize)
     if point is not None:
-        for note in point.notes:
-            print(f"--resume: {note}")
-        print(f"--resume: from {point.model} ({point.steps} steps"
-              + (f", replay buffer {point.replay_buffer.name})" if point.replay_buffer
-                 else ")"))
+        print("\n".join(point.report()))
         model = algo.load(point.model, env=vec_env,
                           tensorboard_log=str(args.output / "tensorboard"))
         if point.replay_buffer is not None:
@@ -352,6 +406,28 @@ def main(argv: list[str] | None = None) -> Path:
     vec_env.close()
     print(f"trained {model.num_timesteps} steps; model: {final}")
     return final
+
+
+def check_rllib_config(config: dict[str, Any], source: str) -> None:
+    """RLlib's hyperparameters checked (:func:`training.rllib_config.check_run_config`):
+    ConfigError naming the key; SystemExit when Ray is not installed."""
+    try:
+        from training.rllib_config import check_run_config as check_rllib_run
+    except ImportError as error:
+        raise SystemExit(f"--framework rllib needs Ray: pip install -e \".[ray]\" "
+                         f"({error})") from None
+    check_rllib_run(config, source)
+
+
+def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
+    """An RLlib run, or a Tune sweep of RLlib runs (:mod:`training`)."""
+    from training.rllib_trainer import train_rllib
+    from training.tune_sweep import sweep
+
+    try:
+        return sweep(config, args) if config.get("tune") else train_rllib(config, args)
+    except ConnectionError as error:  # --ray ADDRESS with no cluster there
+        raise SystemExit(f"--ray {args.ray}: {error}") from None
 
 
 if __name__ == "__main__":

@@ -58,6 +58,26 @@ def atomic_file(path: Path) -> Iterator[IO[bytes]]:
         os.close(folder)
 
 
+def sync_folder(folder: Path) -> None:
+    """Every file and folder below ``folder`` flushed to disk (``fsync``), before a rename
+    makes it a checkpoint: a folder written by another library (RLlib's ``save_to_path``)
+    is then whole on disk once it has its final name."""
+    for root, _, files in os.walk(folder):
+        for name in files:
+            descriptor = os.open(os.path.join(root, name), os.O_RDONLY)
+            try:
+                os.fsync(descriptor)
+            finally:
+                os.close(descriptor)
+        descriptor = os.open(root, os.O_RDONLY)
+        try:
+            os.fsync(descriptor)
+        except OSError:  # a file system without directory fsync
+            pass
+        finally:
+            os.close(descriptor)
+
+
 def save_model(model: Any, path: Path) -> None:
     """``model.save`` to ``path`` (a ``.zip``), atomically."""
     with atomic_file(path) as handle:
@@ -119,10 +139,25 @@ class ResumePoint:
     replay_buffer: Path | None
     notes: tuple[str, ...]
 
+    def report(self) -> list[str]:
+        """What ``--resume`` says: what was skipped, and where it goes on from."""
+        buffer = f", replay buffer {self.replay_buffer.name}" if self.replay_buffer else ""
+        return [f"--resume: {note}" for note in self.notes] + [
+            f"--resume: from {self.model} ({self.steps} steps{buffer})"]
+
+
+def sb3_checkpoints(checkpoints: Path, prefix: str) -> list[tuple[int, Path]]:
+    """``(steps, path)`` of the SB3 checkpoint zips in ``checkpoints``, newest first."""
+    return sorted(((steps, path) for path in checkpoints.glob(f"{prefix}_*{CHECKPOINT_SUFFIX}")
+                   if (steps := checkpoint_steps(path)) is not None), reverse=True)
+
 
 def resume_point(checkpoints: Path, prefix: str, off_policy: bool, *,
                  without_buffer: bool = False,
-                 check_buffer: Callable[[Path], str | None] = buffer_problem
+                 check_buffer: Callable[[Path], str | None] = buffer_problem,
+                 found: list[tuple[int, Path]] | None = None,
+                 check_model: Callable[[Path], str | None] = model_problem,
+                 buffer_of: Callable[[Path, int], Path] | None = None
                  ) -> ResumePoint | None:
     """The newest checkpoint in ``checkpoints`` that can be resumed (see the module
     docstring); ``None`` when there is no checkpoint at all.
@@ -130,21 +165,28 @@ def resume_point(checkpoints: Path, prefix: str, off_policy: bool, *,
     Raises ``ValueError`` when checkpoints exist but none can be resumed: every model is
     torn, or (off-policy, without ``without_buffer``) every whole model lacks a loadable
     replay buffer; the message names each file and its problem.
+
+    SB3's layout by default; another trainer's (RLlib's checkpoint folders) gives its
+    checkpoints ``found`` (``(steps, path)``, newest first), ``check_model`` (why one
+    cannot be loaded, or None) and ``buffer_of(path, steps)`` (where its buffer is).
     """
-    found = sorted(((steps, path) for path in checkpoints.glob(f"{prefix}_*{CHECKPOINT_SUFFIX}")
-                    if (steps := checkpoint_steps(path)) is not None), reverse=True)
+    if found is None:
+        found = sb3_checkpoints(checkpoints, prefix)
+    if buffer_of is None:
+        def buffer_of(path: Path, steps: int) -> Path:
+            return buffer_path(checkpoints, prefix, steps)
     if not found:
         return None
     notes: list[str] = []
     missing_buffers: list[Path] = []
     for steps, path in found:
-        problem = model_problem(path)
+        problem = check_model(path)
         if problem is not None:
             notes.append(f"skipped {path.name}: {problem}")
             continue
         if not off_policy:
             return ResumePoint(path, steps, None, tuple(notes))
-        buffer = buffer_path(checkpoints, prefix, steps)
+        buffer = buffer_of(path, steps)
         buffer_issue = check_buffer(buffer)
         if buffer_issue is None:
             return ResumePoint(path, steps, buffer, tuple(notes))

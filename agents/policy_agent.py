@@ -1,4 +1,4 @@
-"""Trained stable-baselines3 policies as agents on the path-level envs.
+"""Trained policies (stable-baselines3 or RLlib) as agents on the path-level envs.
 
 ``evaluate.py --agents dqn:agents/highway/policies/dqn_highway.zip fsm_bold`` compares a
 policy trained on ``sdc_gym/HighwayLoopBehavior-v0`` with the rule-based planner on the
@@ -10,7 +10,11 @@ inside the drive-by-wire stack the same way.
 
 The behavior env's settings the policy was trained with (decision period, shield, action
 type) are read from the YAML next to the model: ``<model>.yaml`` or the run folder's
-``config.yaml`` (train.py writes it); without one the env's defaults apply.
+``config.yaml`` (train.py writes it), beside the model or one folder up (a checkpoint in
+the run's ``checkpoints/``); without one the env's defaults apply.
+
+``rllib:PATH`` is an RLlib checkpoint folder (``train.py --framework rllib``), loaded by
+:mod:`agents.rllib_policy` behind the same ``predict`` as an SB3 model.
 """
 
 from __future__ import annotations
@@ -37,26 +41,34 @@ from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
 from sdc_gym.stack.track.decisions import TrackDecisionBehavior, TrackFeatures
 from sdc_gym.stack.track.detector import GroundTruthLightSource
 
-POLICY_KINDS = ("ppo", "dqn", "sac", "a2c")
-"""Agent spec prefixes: ``<kind>:<path to model.zip>``."""
+SB3_KINDS = ("ppo", "dqn", "sac", "a2c")
+"""Agent spec prefixes of SB3 models: ``<kind>:<path to model.zip>``."""
+RLLIB_KIND = "rllib"
+"""The agent spec prefix of RLlib checkpoints: ``rllib:<checkpoint folder>``."""
+POLICY_KINDS = (*SB3_KINDS, RLLIB_KIND)
 PROJECT_ROOT = Path(__file__).resolve().parents[1]
 
 
 def resolve_model_path(path: str | Path) -> Path:
     """``path`` as given, or relative to the project (committed policies) if only there."""
     given = Path(path)
-    if not given.is_file() and not given.is_absolute() and (PROJECT_ROOT / given).is_file():
+    if not given.exists() and not given.is_absolute() and (PROJECT_ROOT / given).exists():
         return PROJECT_ROOT / given
     return given
 
 
 def load_model(kind: str, path: str | Path) -> Any:
-    """The SB3 model of algorithm ``kind`` saved at ``path`` (on the CPU)."""
-    import stable_baselines3
-
+    """The model of ``kind`` saved at ``path`` (on the CPU): an SB3 algorithm's, or an
+    RLlib policy (:class:`agents.rllib_policy.RLlibPolicy`) for ``"rllib"``."""
     if kind not in POLICY_KINDS:
         raise ValueError(f"unknown policy kind {kind!r}; valid: {list(POLICY_KINDS)}")
     model_path = resolve_model_path(path)
+    if kind == RLLIB_KIND:
+        from agents.rllib_policy import load_rllib_policy  # Ray only when used
+
+        return load_rllib_policy(model_path)
+    import stable_baselines3
+
     if not model_path.is_file():
         raise ValueError(f"{kind}: no model file at {model_path}")
     return getattr(stable_baselines3, kind.upper()).load(model_path, device="cpu")
@@ -65,7 +77,8 @@ def load_model(kind: str, path: str | Path) -> Any:
 def training_config(path: str | Path) -> tuple[str | None, dict[str, Any]]:
     """The env id and behavior-env config a model was trained with (None, {}: unknown)."""
     model_path = resolve_model_path(path)
-    for candidate in (model_path.with_suffix(".yaml"), model_path.parent / "config.yaml"):
+    for candidate in (model_path.with_suffix(".yaml"), model_path.parent / "config.yaml",
+                      model_path.parent.parent / "config.yaml"):
         if candidate.is_file():
             data = yaml.safe_load(candidate.read_text(encoding="utf-8")) or {}
             return data.get("env"), dict(data.get("config") or {})

@@ -70,11 +70,11 @@ AGENT_KINDS: dict[str, AgentKindFactory] = {
     # A planner written for the original highway simulator, run per episode and driven
     # through its wire protocol: "external:./path_planning" (agents/external.py).
     "external": _external_agent,
-    # Trained stable-baselines3 policies of the behavior-level envs, in the place of the
-    # rule-based behavior layer: "dqn:agents/highway/policies/dqn_highway.zip"
-    # (agents/policy_agent.py).
+    # Trained policies of the behavior-level envs, in the place of the rule-based behavior
+    # layer: stable-baselines3 models ("dqn:agents/highway/policies/dqn_highway.zip") and
+    # RLlib checkpoints ("rllib:runs/ppo_rllib/model") (agents/policy_agent.py).
     **{kind: (lambda argument, env, _kind=kind, **options: _policy_agent(_kind, argument, env))
-       for kind in ("ppo", "dqn", "sac", "a2c")},
+       for kind in ("ppo", "dqn", "sac", "a2c", "rllib")},
 }
 """Agent specs ``"kind:argument"``, an agent per argument (a command, a model file...)."""
 

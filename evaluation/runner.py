@@ -4,15 +4,16 @@
 laps (with a line per running episode that moves during the episode, useful for a single
 long endurance run). A backend is anything with ``run(specs, events)`` that runs every
 spec somewhere and tells ``events`` (:class:`EpisodeEvents`) when an episode starts,
-advances and finishes:
+advances, finishes, or fails (it raised, or the process running it died): a failed
+episode is reported with its reason and the others still run.
 
 * :class:`InProcessBackend`: one after the other in this process;
 * :class:`ProcessPoolBackend`: a local pool of worker processes
   (:class:`concurrent.futures.ProcessPoolExecutor`), each pinned to one math thread, each
-  ending itself when the process that made the pool dies (even by ``kill -9``).
+  ending itself when the process that made the pool dies (even by ``kill -9``);
+* :class:`evaluation.ray_backend.RayBackend`: Ray tasks on a cluster (``--ray``).
 
-Another executor (a cluster) plugs in as one more backend with the same two methods'
-contract; nothing else in the evaluation depends on where episodes run.
+Nothing else in the evaluation depends on where episodes run.
 """
 
 from __future__ import annotations
@@ -22,8 +23,10 @@ import os
 import signal
 import threading
 import time
+import traceback
 from collections.abc import Sequence
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import dataclass
 from queue import Empty
 from typing import Any, Protocol
 
@@ -41,14 +44,56 @@ class EpisodeEvents(Protocol):
 
     def finished(self, index: int, result: dict[str, Any]) -> None: ...
 
+    def failed(self, index: int, reason: str, details: str) -> None:
+        """The episode ended without a result: ``reason`` in one line (the exception's
+        type and message, or how its worker died), ``details`` its traceback."""
+
 
 class EpisodeBackend(Protocol):
     """Runs every spec once and reports through ``events``; returns when all are done.
 
-    An exception of an episode propagates (the remaining episodes are cancelled).
+    Every spec ends in exactly one ``finished`` or ``failed``: an episode that raises (an
+    ``Exception``), or whose worker process dies, is reported as failed and the other
+    episodes still run. ``KeyboardInterrupt`` (and other ``BaseException``) stops the run:
+    the backend cancels what is still running and lets it propagate.
     """
 
     def run(self, specs: Sequence[EpisodeSpec], events: EpisodeEvents) -> None: ...
+
+
+@dataclass(frozen=True)
+class EpisodeFailure:
+    """An episode that ended without a result (see :class:`EpisodeBackend`)."""
+
+    agent: str
+    seed: int
+    reason: str
+    details: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        return {"agent": self.agent, "seed": self.seed, "reason": self.reason,
+                "details": self.details}
+
+
+@dataclass(frozen=True)
+class EpisodeRuns:
+    """What :func:`run_episodes` returns: the results of the episodes that finished, in
+    the specs' order, and those that failed."""
+
+    results: list[dict[str, Any]]
+    failures: list[EpisodeFailure]
+
+
+def failure_reason(error: BaseException) -> str:
+    """One line for an episode's exception: ``"ValueError: no model file at x.zip"``."""
+    message = str(error).strip().splitlines()
+    return f"{type(error).__name__}: {message[0]}" if message else type(error).__name__
+
+
+def failure_details(error: BaseException) -> str:
+    """The exception's traceback (a worker's own traceback included, as the pool and Ray
+    attach it), for ``summary.json``."""
+    return "".join(traceback.format_exception(error)).rstrip()
 
 
 def progress_fields(info: dict[str, Any]) -> dict[str, float]:
@@ -68,7 +113,12 @@ class InProcessBackend:
             def report(laps: float, info: dict[str, Any], index: int = index) -> None:
                 events.progress(index, laps, progress_fields(info))
 
-            events.finished(index, run_episode(spec, report))
+            try:
+                result = run_episode(spec, report)
+            except Exception as error:  # reported; the other episodes still run
+                events.failed(index, failure_reason(error), failure_details(error))
+            else:
+                events.finished(index, result)
 
 
 WORKER_THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
@@ -166,7 +216,12 @@ class ProcessPoolBackend:
                         for future in done:
                             index = futures[future]
                             done_indices.add(index)
-                            events.finished(index, future.result())
+                            error = future.exception()
+                            if error is None:
+                                events.finished(index, future.result())
+                            else:  # raised in the worker, or the worker died
+                                events.failed(index, failure_reason(error),
+                                              failure_details(error))
                 except BaseException:
                     pool.shutdown(wait=False, cancel_futures=True)
                     raise
@@ -196,6 +251,7 @@ class _ProgressDisplay:
 
         self.specs = specs
         self.results: list[dict[str, Any] | None] = [None] * len(specs)
+        self.failures: dict[int, EpisodeFailure] = {}
         self.laps = [float(spec.env_config.get("laps", 1)) for spec in specs]
         self.done = [0.0] * len(specs)
         self.finished_count = 0
@@ -234,6 +290,17 @@ class _ProgressDisplay:
 
     def finished(self, index: int, result: dict[str, Any]) -> None:
         self.results[index] = result
+        self._end(index)
+
+    def failed(self, index: int, reason: str, details: str) -> None:
+        spec = self.specs[index]
+        self.failures[index] = EpisodeFailure(spec.agent, spec.seed, reason, details)
+        if not self.bar.disable:  # above the live bar, as it happens (the caller reports)
+            self.bar.console.print(f"{spec.agent} seed {spec.seed} failed: {reason}",
+                                   markup=False, highlight=False)
+        self._end(index)
+
+    def _end(self, index: int) -> None:
         if index in self.tasks:
             self.bar.remove_task(self.tasks.pop(index))
         self.finished_count += 1
@@ -245,16 +312,20 @@ class _ProgressDisplay:
 
 
 def run_episodes(specs: Sequence[EpisodeSpec], workers: int = 1, progress: bool = True,
-                 backend: EpisodeBackend | None = None) -> list[dict[str, Any]]:
-    """Run every spec; results in the specs' order.
+                 backend: EpisodeBackend | None = None) -> EpisodeRuns:
+    """Run every spec: the results in the specs' order, and the episodes that failed.
 
     ``backend`` defaults to :func:`default_backend` for ``workers``. ``progress`` shows a
-    rich bar counting laps, with a line per running episode.
+    rich bar counting laps, with a line per running episode (and a line per failure).
     """
     backend = backend or default_backend(workers, len(specs))
     with _ProgressDisplay(specs, progress) as display:
         backend.run(specs, display)
-    missing = [specs[i].agent for i, result in enumerate(display.results) if result is None]
+    missing = [f"{specs[i].agent} seed {specs[i].seed}"
+               for i, result in enumerate(display.results)
+               if result is None and i not in display.failures]
     if missing:
-        raise RuntimeError(f"the backend returned without results for {missing}")
-    return [result for result in display.results if result is not None]
+        raise RuntimeError(f"the backend returned without a result or a failure for "
+                           f"{missing}")
+    return EpisodeRuns([result for result in display.results if result is not None],
+                       [display.failures[i] for i in sorted(display.failures)])

@@ -19,7 +19,7 @@ from typing import Any
 
 from evaluation.episodes import EpisodeSpec
 from evaluation.files import _csv, atomic_write_text
-from evaluation.runner import run_episodes
+from evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
 from evaluation.tables import TableData
 from sdc_gym.config import ConfigError
 from sdc_gym.scenarios.replay import incident_scenario
@@ -49,7 +49,13 @@ def scenario_cases(path: Path) -> list[ScenarioCase]:
         files = sorted(path.glob("*.yaml"))
         if not files:
             raise SystemExit(f"--scenario {path}: the folder has no *.yaml scenario files")
-        return [_file_case(file) for file in files]
+        cases = [_file_case(file) for file in files]
+        names = [case.name for case in cases]
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:
+            raise SystemExit(f"--scenario {path}: scenario names must differ (a verdict is "
+                             f"found by its name); {twice} are in more than one file")
+        return cases
     if not path.is_file():
         raise SystemExit(f"--scenario {path}: no such file or folder")
     if path.suffix == ".json":
@@ -100,20 +106,30 @@ def scenario_specs(cases: list[ScenarioCase], agents: list[str], seeds: list[int
 
 
 def verdict_rows(cases: list[ScenarioCase], episodes: list[dict[str, Any]], agents: list[str],
-                 seeds: list[int]) -> list[dict[str, Any]]:
-    """One row per episode, in the specs' order."""
+                 seeds: list[int], failures: list[EpisodeFailure] = ()
+                 ) -> list[dict[str, Any]]:
+    """One row per (scenario, agent, seed), in the specs' order; an episode that failed
+    (raised, or its worker died) is a FAIL with the failure's reason."""
+    found = {((episode.get("scenario") or {}).get("name"), episode["agent"],
+              episode["seed"]): episode for episode in episodes}
+    failed = {(failure.agent, failure.seed): failure.reason for failure in failures}
     rows = []
-    index = 0
     for case in cases:
-        for _agent in agents:
-            for _seed in seeds:
-                episode = episodes[index]
-                index += 1
-                verdict = episode.get("scenario") or {}
+        for agent in agents:
+            for seed in seeds:
+                episode = found.get((case.name, agent, seed))
+                if episode is None:
+                    rows.append({"scenario": case.name, "agent": agent, "seed": seed,
+                                 "passed": False, "reason": "the episode failed: "
+                                 + failed.get((agent, seed), "no result"),
+                                 "termination_reason": "failed", "time": 0.0,
+                                 "distance": 0.0, "source": case.source})
+                    continue
+                verdict = episode["scenario"]
                 rows.append({
-                    "scenario": case.name, "agent": episode["agent"], "seed": episode["seed"],
-                    "passed": bool(verdict.get("passed", False)),
-                    "reason": verdict.get("reason", episode.get("abort_message", "")),
+                    "scenario": case.name, "agent": agent, "seed": seed,
+                    "passed": bool(verdict["passed"]),
+                    "reason": episode.get("abort_message") or verdict["reason"],
                     "termination_reason": episode.get("termination_reason", ""),
                     "time": round(float(episode.get("time", 0.0)), 3),
                     "distance": round(float(episode.get("distance", 0.0)), 1),
@@ -133,13 +149,16 @@ def verdict_table(rows: list[dict[str, Any]], title: str) -> TableData:
 
 
 def run_scenarios(path: Path, agents: list[str], seeds: list[int], env_id: str,
-                  env_config: dict[str, Any], workers: int, progress: bool
-                  ) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
-    """Run every agent on every scenario of ``path``; the verdict rows and the episodes."""
+                  env_config: dict[str, Any], workers: int, progress: bool,
+                  backend: EpisodeBackend | None = None
+                  ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[EpisodeFailure]]:
+    """Run every agent on every scenario of ``path`` (worker processes, or ``backend``:
+    Ray); the verdict rows, the episodes and the failures."""
     cases = scenario_cases(path)
     specs = scenario_specs(cases, agents, seeds, env_id, env_config)
-    episodes = run_episodes(specs, workers=workers, progress=progress)
-    return verdict_rows(cases, episodes, agents, seeds), episodes
+    runs = run_episodes(specs, workers=workers, progress=progress, backend=backend)
+    return (verdict_rows(cases, runs.results, agents, seeds, runs.failures), runs.results,
+            runs.failures)
 
 
 def write_scenario_run(folder: Path, rows: list[dict[str, Any]],

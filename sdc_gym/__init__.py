@@ -26,9 +26,13 @@ _VECTOR_ENTRY_POINTS = {
     "sdc_gym/HighwayLoopBehavior-v0": "sdc_gym.envs.highway_vector:make_behavior_vector_env",
 }
 
+ENV_IDS: tuple[str, ...] = tuple(_ENVIRONMENTS)
+"""Every env id the package registers (``sdc_gym.ray.register_envs`` registers them with
+Ray too)."""
+
 for _env_id, _entry_point in _ENVIRONMENTS.items():
     if _env_id not in registry:
         register(id=_env_id, entry_point=_entry_point,
                  vector_entry_point=_VECTOR_ENTRY_POINTS.get(_env_id))
 
-__all__ = ["__version__"]
+__all__ = ["ENV_IDS", "__version__"]

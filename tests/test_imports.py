@@ -2,8 +2,8 @@
 
 The graph is read from the source (every ``import`` anywhere in a module, also those
 inside functions, which still close a circle when they run), over the packages
-``sdc_gym``, ``agents`` and ``evaluation`` and the scripts ``evaluate.py`` and
-``train.py``. ``from package import name`` counts as importing ``package.name`` when that
+``sdc_gym``, ``agents``, ``evaluation`` and ``training`` and the scripts ``evaluate.py``
+and ``train.py``. ``from package import name`` counts as importing ``package.name`` when that
 is a module, else ``package`` itself.
 """
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("sdc_gym", "agents", "evaluation")
+PACKAGES = ("sdc_gym", "agents", "evaluation", "training")
 SCRIPTS = ("evaluate", "train")
 
 
@@ -124,6 +124,9 @@ def test_the_layers_point_one_way():
     assert graph["sdc_gym"] == set(), "sdc_gym imports nothing of agents or evaluation"
     assert graph["agents"] == {"sdc_gym"}
     assert graph["evaluation"] == {"agents", "sdc_gym"}
+    assert graph["training"] <= {"agents", "evaluation", "sdc_gym"}
+    assert not any("training" in targets for name, targets in graph.items()
+                   if name not in ("training", *SCRIPTS)), "only the scripts use training"
     assert find_cycle(graph) is None
 
 
