@@ -190,7 +190,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; later, without changing any default episode: scenarios, road
+      events (``road_events``), buses, vans and semi-trailers (``traffic.vehicle_mix``)
+      and ``stop_at_incident``.
     """
 
     DEFAULT_CONFIG: ClassVar[dict[str, Any]] = HIGHWAY_DEFAULTS

@@ -90,26 +90,31 @@ def after_decision(st: TrafficState, lc_start_before: IntArray) -> None:
         st.half_acc[forced] = 0.5 * st.forced_acc[forced]
 
 
-def place_objects(geometry: Any, st: TrafficState, step0: IntArray, samples: Any) -> None:
+def place_objects(geometry: Any, st: TrafficState, step0: IntArray, samples: Any,
+                  rows: IntArray | None = None) -> None:
     """The road objects (and parked slots) where they are in a window's ``samples``
     (``(envs, frames, cars)``, written in place; frame ``k`` is step ``step0 + k + 1``):
     at d = ``base_d + lateral_rate * dt * (clip(step, from, until) - from)``, moving across
     at the rate while the step is in ``[from, until)``, their pose from the same
-    ``geometry.pose`` as the cars'. Whatever the kernels made of them laterally is replaced."""
-    env, car = np.nonzero(st.role != TRAFFIC)
-    if not len(env):
+    ``geometry.pose`` as the cars'. Whatever the kernels made of them laterally is replaced.
+    ``rows``: the envs of ``st`` that the samples' rows are (default all); ``step0`` per
+    row."""
+    role = st.role if rows is None else st.role[rows]
+    row, car = np.nonzero(role != TRAFFIC)
+    if not len(row):
         return
+    env = row if rows is None else np.asarray(rows)[row]
     frames = samples.s.shape[1]
-    steps = step0[env][:, None] + np.arange(1, frames + 1)[None, :]
+    steps = step0[row][:, None] + np.arange(1, frames + 1)[None, :]
     start = st.lateral_from[env, car][:, None]
     until = st.lateral_until[env, car][:, None]
     rate = st.lateral_rate[env, car][:, None]
     walked = (np.minimum(np.maximum(steps, start), until) - start) * geometry.dt
     d = st.base_d[env, car][:, None] + rate * walked
     d_dot = np.where((steps >= start) & (steps < until), rate, 0.0)
-    placed = geometry.pose(samples.s[env, :, car], d, samples.speed[env, :, car], d_dot)
+    placed = geometry.pose(samples.s[row, :, car], d, samples.speed[row, :, car], d_dot)
     for name in ("s", "d", "speed", "x", "y", "heading", "vx", "vy"):
-        getattr(samples, name)[env, :, car] = getattr(placed, name)
+        getattr(samples, name)[row, :, car] = getattr(placed, name)
 
 
 def object_d(st: TrafficState, row: int, car: int, dt: float) -> float:
