@@ -232,17 +232,26 @@ def test_batched_scenarios_equal_single_envs_per_env():
     vec.close()
 
 
-def test_behavior_env_runs_scenarios_too():
-    env = gym.make("sdc_gym/HighwayLoopBehavior-v0",
-                   config={"highway": {"scenario": str(library_path("stress_cut_in_10m"))}})
+@pytest.mark.parametrize("action, shield, passed", [
+    ("keep/cruise", True, False), ("keep/cruise", False, False),  # drives into it
+    ("keep/hold", True, True), ("keep/hold", False, False),  # the shield brakes in time
+    ("keep/slow", False, True)])
+def test_behavior_env_runs_scenarios_too(action, shield, passed):
+    """The cut-in at the behavior level, one decision held throughout: holding the speed
+    hits the car unless the safety shield brakes for it; slowing down misses it."""
+    from sdc_gym.stack.highway.decisions import ACTION_NAMES
+
+    env = gym.make("sdc_gym/HighwayLoopBehavior-v0", config={
+        "highway": {"scenario": str(library_path("stress_cut_in_10m"))},
+        "safety_shield": shield})
     env.reset(seed=0)
-    keep = 0  # keep lane, keep speed: the behavior level's "no reaction" at full speed
-    info = {}
-    for _ in range(200):
-        _, _, terminated, truncated, info = env.step(keep)
+    while True:
+        _, _, terminated, truncated, info = env.step(ACTION_NAMES.index(action))
         if terminated or truncated:
             break
-    assert "scenario" in info["summary"]
+    verdict = info["summary"]["scenario"]
+    assert verdict["passed"] is passed, verdict["reason"]
+    assert info["termination_reason"] == ("scenario_end" if passed else "collision")
 
 
 # --------------------------------------------------------------------------- evaluate.py
