@@ -61,6 +61,7 @@ class EpisodeSettings:
         self.judges: list[ScenarioJudge | None] = [None] * envs
         self.stopped = np.zeros(envs, dtype=bool)
         self.collided_with: list[str | None] = [None] * envs
+        self._judged: set[int] = set()  # the envs running a scenario
 
     # ------------------------------------------------------------------ resets
     def reset(self, world: Any, env: int, rng: np.random.Generator, scenario: Any) -> bool:
@@ -78,12 +79,14 @@ class EpisodeSettings:
         self.stopped[env] = False
         self.collided_with[env] = None
         self.max_duration[env] = self.default_duration
+        self._judged.discard(env)
         if scenario is None:
             return False
         world.rngs[env] = rng
         scenario_episode.start(world, env, rng, scenario, self.rates)
         self.judges[env] = ScenarioJudge(scenario, self.road.lane_width, self.road.lane_count)
         self.max_duration[env] = scenario.duration
+        self._judged.add(env)
         return True
 
     def random_started(self, world: Any, env: int, rng: np.random.Generator) -> None:
@@ -95,9 +98,14 @@ class EpisodeSettings:
     def record(self, world: Any, incidents: list[Any], d: NDArray[np.float64]
                ) -> NDArray[np.bool_]:
         """One step's incidents per env (``d``: the ego's d at the step's end): what each
-        collision hit, the judges, the stops; the envs stopped at an incident."""
+        collision hit, the judges, the stops; the envs stopped at an incident. Random
+        traffic without ``stop_at_incident`` costs one test."""
+        if not self._judged and not self.stop_kinds:
+            return self.stopped
         time = world.metrics.time()
         for env, new in enumerate(incidents):
+            if not new and env not in self._judged:
+                continue
             for incident in new:
                 if incident.kind == "collision" and self.collided_with[env] is None:
                     self.collided_with[env] = self.kind_of(world, env, int(incident.value))
