@@ -18,10 +18,23 @@ from numpy.typing import NDArray
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.highway_world import HighwayWorld, incident_kinds
 from sdc_gym.scenarios.episode import CONFIG
-from sdc_gym.stack.highway.decisions import ACTION_NAMES, DecisionExecutor, HighwayDecision
+from sdc_gym.stack.highway import behavior_kernel
+from sdc_gym.stack.highway.decisions import (
+    ACTION_NAMES,
+    DecisionExecutor,
+    ExecutorBatch,
+    HighwayDecision,
+    decision_codes,
+)
 from sdc_gym.stack.highway.features import BehaviorFeatures
 from sdc_gym.stack.highway.motion import MotionBatch, MotionParameters, SeedMotionPlanner
-from sdc_gym.stack.highway.perception import Perception, PerceptionParameters, perceive_all
+from sdc_gym.stack.highway.perception import (
+    Perception,
+    PerceptionParameters,
+    SensedBatch,
+    sense_batch,
+    world_model_of,
+)
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import WorldModel
 from sdc_gym.validation.env_configs import check_highway_behavior_config
@@ -89,8 +102,9 @@ class HighwayBehaviorWorld:
         self.perception = [Perception(road, self.perception_params) for _ in range(envs)]
         self.motion_batch = MotionBatch(road, self.motion_params, envs)
         self.motion = [SeedMotionPlanner.view(self.motion_batch, env) for env in range(envs)]
-        self.executor = [DecisionExecutor(self.shield, slow_step_mps=float(cfg["slow_step_mps"]))
-                         for _ in range(envs)]
+        self.executors = ExecutorBatch(self.shield, envs,
+                                       slow_step_mps=float(cfg["slow_step_mps"]))
+        self.executor = [DecisionExecutor.view(self.executors, env) for env in range(envs)]
         self.features = BehaviorFeatures(road.lane_count, self.perception_params.sensing_range)
         self.discrete = cfg["action"] == "discrete"
         self.decision_period_s = PHYSICS_DT * cfg["decision_frames"]
@@ -101,11 +115,15 @@ class HighwayBehaviorWorld:
         require(0.0 <= self.shaping_gamma <= 1.0, owner, "shaping_gamma", "in [0, 1]",
                 cfg["shaping_gamma"])
         self.decisions = np.zeros(envs, dtype=np.int64)
-        self.world_models: list[WorldModel | None] = [None] * envs
+        self.sensed: SensedBatch | None = None
         self.observations = np.zeros((envs, self.features.size), dtype=np.float32)
         self._paths = np.zeros((envs, self.world.path_points, 2))
-        self._lengths = np.zeros(envs, dtype=np.int64)
-        self.last_plans: list[Any] = [None] * envs
+        self._all = np.ones(envs, dtype=bool)
+        self._steering = np.ones(envs, dtype=bool)
+        # The plan of each env's last decision: target lane and speed.
+        self.plan_lane = np.full(envs, -1, dtype=np.int64)
+        self.plan_speed = np.zeros(envs)
+        self._planned = np.zeros(envs, dtype=bool)
 
     # ------------------------------------------------------------------ episodes
     def reset_at(self, env: int, rng: np.random.Generator, scenario: Any = CONFIG) -> None:
@@ -114,12 +132,12 @@ class HighwayBehaviorWorld:
         self.world.reset_at(env, rng, scenario)
         self.perception[env].reset()
         self.motion[env].reset()
-        self.executor[env].reset()
+        self.executors.reset_at(env)
         self.decisions[env] = 0
-        self.last_plans[env] = None
-        world = self._perceive(np.zeros(self.envs), [env])[0]
-        self.world_models[env] = world
-        self.observations[env] = self.features.encode(world, self.executor[env])
+        self._planned[env] = False
+        rows = np.zeros(self.envs, dtype=bool)
+        rows[env] = True
+        self._perceive(np.zeros(self.envs), rows)
 
     # ------------------------------------------------------------------ decisions
     def decode(self, action: Any, env: int = 0) -> HighwayDecision:
@@ -128,83 +146,136 @@ class HighwayBehaviorWorld:
             if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
                 action = action.reshape(()).item()
             return HighwayDecision.from_index(action)
-        return HighwayDecision.from_vector(action, self.executor[env].cruise_speed_mps)
+        return HighwayDecision.from_vector(action, self.executors.cruise_speed_mps)
+
+    def decode_batch(self, actions: Any) -> tuple[NDArray[np.int64], NDArray[np.int64],
+                                                  FloatArray]:
+        """Every env's action as lane moves, speed move codes and target speeds: the
+        kernel's form of :meth:`decode` (whose ``ValueError`` an invalid one raises)."""
+        envs = self.envs
+        values = np.asarray(actions)
+        if self.discrete and values.shape == (envs,) and values.dtype.kind in "iu":
+            index = values.astype(np.int64)
+            if ((index >= 0) & (index < len(ACTION_NAMES))).all():
+                lane, speed = np.divmod(index, 3)
+                return lane - 1, speed, np.zeros(envs)
+        elif not self.discrete and values.shape == (envs, 2) and values.dtype.kind == "f":
+            vector = values.astype(np.float64)
+            if np.isfinite(vector).all() and not (np.abs(vector) > 1.0 + 1e-6).any():
+                lane = np.where(vector[:, 0] < -1.0 / 3.0, -1,
+                                np.where(vector[:, 0] > 1.0 / 3.0, 1, 0))
+                target = 0.5 * (np.minimum(np.maximum(vector[:, 1], -1.0), 1.0) + 1.0) * (
+                    self.executors.cruise_speed_mps)
+                return lane, np.full(envs, behavior_kernel.TARGET_SPEED), target
+        # Anything else: one at a time (the single env's decoding and its errors).
+        codes = [decision_codes(self.decode(actions[env], env)) for env in range(envs)]
+        lane_move, speed_move, target = (np.array(column) for column in zip(*codes, strict=True))
+        return lane_move.astype(np.int64), speed_move.astype(np.int64), target.astype(float)
 
     def step(self, actions: Any) -> tuple[FloatArray, NDArray[np.bool_], NDArray[np.bool_],
                                           list[Any]]:
         """Every env takes its decision (``actions[i]``) for ``decision_frames`` frames:
         rewards, terminated, truncated, and the incidents each env's step began."""
-        if any(model is None for model in self.world_models):
+        if self.sensed is None or not self._all_reset():
             raise RuntimeError("call reset() before step()")
+        sensed = self.sensed
+        executors = self.executors
+        lane_move, speed_move, target_speed = self.decode_batch(actions)
+        potentials = self._potentials(sensed)
+        before = executors.ints[:, [behavior_kernel.LANE_CHANGES,
+                                    behavior_kernel.REFUSED]].copy()
         envs = self.envs
-        decisions = [self.decode(actions[env], env) for env in range(envs)]
-        potentials = np.array([self.room_potential(env) for env in range(envs)])
-        before = [(ex.lane_changes, ex.refused) for ex in self.executor]
-        plans = []
-        for env in range(envs):
-            world = self.world_models[env]
-            assert world is not None
-            plans.append(self.executor[env].execute(world, decisions[env]))
-        self.last_plans = plans
+        accel, replan = np.empty(envs), np.empty(envs, dtype=bool)
+        behavior_kernel.execute_batch(
+            self.shield is not None, executors.shield_array, executors.constants, sensed.views,
+            sensed.ego_lane, sensed.ego_d, sensed.ego_speed, self.world.road.lane_width,
+            sensed.road_radius, self.times, lane_move, speed_move, target_speed,
+            executors.ints, executors.last_change, self.plan_lane, self.plan_speed, accel,
+            replan)
+        self._planned[:] = True
         # The motion layer plans from the ego as observed (float32, like the single env's).
         ego = self.world.ego_array().astype(np.float32)
-        paths, lengths = self.motion_batch.plan(
-            ego, [plan.target_lane for plan in plans], [plan.target_speed for plan in plans],
-            [plan.acceleration for plan in plans], [plan.replan for plan in plans],
-            [plan.steering for plan in plans])
+        paths, lengths = self.motion_batch.plan(ego, self.plan_lane, self.plan_speed, accel,
+                                                replan, self._steering)
         self._paths[:, :paths.shape[1]] = paths
         lengths = self.world.check_paths(self._paths, lengths)
         result = self.world.step(self._paths, lengths)
         self.decisions += 1
+        sensed = self._perceive(self.decisions * self.decision_period_s, self._all)
         reward = result.reward
-        models = self._perceive(self.decisions * self.decision_period_s)
-        for env in range(envs):
-            world = models[env]
-            self.world_models[env] = world
-            executor = self.executor[env]
-            value = float(reward[env])
-            if self.room_weight:
-                after = 0.0 if result.terminated[env] else self.room_potential(env)
-                value += self.shaping_gamma * after - float(potentials[env])
-            value += self.lane_change_reward * (executor.lane_changes - before[env][0])
-            value += self.refused_reward * (executor.refused - before[env][1])
-            reward[env] = value
-            self.observations[env] = self.features.encode(world, executor)
+        if self.room_weight:
+            after = self._potentials(sensed)
+            after[result.terminated] = 0.0
+            reward += self.shaping_gamma * after - potentials
+        changes = executors.ints[:, [behavior_kernel.LANE_CHANGES,
+                                     behavior_kernel.REFUSED]] - before
+        reward += self.lane_change_reward * changes[:, 0]
+        reward += self.refused_reward * changes[:, 1]
         return reward, result.terminated, result.truncated, result.incidents
 
-    def _perceive(self, times: FloatArray, rows: list[int] | None = None) -> list[WorldModel]:
-        """The world models of every env (or of ``rows``), from the observation as the
-        single env gives it (float32)."""
+    def _all_reset(self) -> bool:
+        return self.world._all_reset or all(rng is not None for rng in self.world.rngs)
+
+    @property
+    def times(self) -> FloatArray:
+        """Each env's perception clock: decisions taken x the decision period (s)."""
+        return self.decisions * self.decision_period_s
+
+    def _perceive(self, times: FloatArray, rows: NDArray[np.bool_]) -> SensedBatch:
+        """Perceive every env (from the observation as the single env gives it, float32)
+        and encode the observations of ``rows``."""
         world = self.world
         ego = world.ego_array().astype(np.float32)
         fusion = world.fusion.astype(np.float32)
-        present = world.fusion_mask
-        if rows is not None:
-            ego, fusion, present, times = ego[rows], fusion[rows], present[rows], times[rows]
-        perceptions = self.perception if rows is None else [self.perception[e] for e in rows]
-        return perceive_all(perceptions, ego, fusion, present, times, with_cars=False)
+        if rows.all():
+            sensed = sense_batch(self.perception, ego, fusion, world.fusion_mask, times)
+        else:  # only these envs moved on: the others keep what they perceived
+            which = np.flatnonzero(rows)
+            part = sense_batch([self.perception[env] for env in which.tolist()], ego[which],
+                               fusion[which], world.fusion_mask[which], times[which])
+            sensed = self.sensed if self.sensed is not None else SensedBatch(
+                self.envs, fusion.shape[1], self.road.lane_count)
+            sensed.put(which, part)
+        self.sensed = sensed
+        executors = self.executors
+        behavior_kernel.encode_batch(
+            self.shield is not None, executors.shield_array, sensed.views, sensed.ego_lane,
+            sensed.ego_d, sensed.ego_speed, world.road.lane_width, sensed.road_radius, times,
+            executors.ints, executors.last_change, self.features.scales, rows,
+            self.observations)
+        return sensed
+
+    def _potentials(self, sensed: SensedBatch) -> FloatArray:
+        """The shaping potential of every env (0 without shaping)."""
+        out = np.zeros(self.envs)
+        if self.room_weight:
+            behavior_kernel.room_batch(sensed.views, sensed.ego_lane, self.executors.ints,
+                                       self.room_weight, self.perception_params.sensing_range,
+                                       out)
+        return out
 
     def room_potential(self, env: int) -> float:
         """The shaping potential: weight x room ahead in the target lane / sensing range."""
-        world = self.world_models[env]
-        if not self.room_weight or world is None:
+        if not self.room_weight or self.sensed is None:
             return 0.0
-        executor = self.executor[env]
-        lane = executor.target_lane if executor.target_lane >= 0 else world.ego_lane
-        rng = self.perception_params.sensing_range
-        return self.room_weight * min(world.lanes[lane].ahead_gap, rng) / rng
+        return float(self._potentials(self.sensed)[env])
+
+    def world_model(self, env: int) -> WorldModel:
+        """Env ``env``'s world model as perception last saw it (the lane views, the ego
+        and the road; no cars)."""
+        assert self.sensed is not None
+        return world_model_of(self.sensed, env, float(self.times[env]), self.perception[env])
 
     def behavior_info(self, env: int, action: Any) -> dict[str, Any]:
         """Env ``env``'s ``info["behavior"]``: the decision executed and the counters."""
         executor = self.executor[env]
         info: dict[str, Any] = {"lane_changes": executor.lane_changes,
                                 "refused": executor.refused, "aborted": executor.aborted}
-        plan = self.last_plans[env]
-        if plan is not None:
+        if self._planned[env]:
             name = (ACTION_NAMES[int(np.asarray(action).reshape(()))]
                     if self.discrete else "continuous")
-            info.update(action_name=name, target_lane=plan.target_lane,
-                        target_speed=plan.target_speed)
+            info.update(action_name=name, target_lane=int(self.plan_lane[env]),
+                        target_speed=float(self.plan_speed[env]))
         return info
 
     def info(self, env: int, incidents: Any, *, final: bool, action: Any = None
@@ -221,3 +292,5 @@ class HighwayBehaviorWorld:
         if world.traffic.object_slots:
             info["road_events"] = world.road_events(env)
         return info
+
+

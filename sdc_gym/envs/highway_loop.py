@@ -96,7 +96,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     When a path arrives, points before the one nearest the car are dropped, and that one
     too unless it is the path's first point and not exactly under the car (the original's
-    ``perfect_controller`` rule, :mod:`sdc_gym.envs.perfect_controller`), so a planner
+    ``perfect_controller`` rule, :mod:`sdc_gym.vehicle.perfect_controller`), so a planner
     that resends its consumed points never stalls the car. A path's last point is never
     driven to: with one point left, the next frame removes it and the car stands still
     (the previous path is then empty, like the original's). A path takes effect

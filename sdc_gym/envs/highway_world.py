@@ -29,12 +29,13 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
-from sdc_gym.geometry.collision import contact_reach_sq, first_contacts
-from sdc_gym.geometry.exact_math import hypot
+from sdc_gym.geometry.collision import first_contacts
+from sdc_gym.geometry.exact_math import py_hypot
 from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
@@ -122,6 +123,53 @@ class StepResult:
     incidents: list[Any]
 
 
+@njit(cache=True)
+def path_lengths(paths: np.ndarray, lengths: np.ndarray, low: np.ndarray, high: np.ndarray,
+                 out: np.ndarray) -> int:
+    """Each path's length without trailing repeats of its last point (at least 1 of a
+    path of repeats) into ``out``; the first env with a point outside ``[low, high]``
+    or not finite (NaN compares false), or -1."""
+    for e in range(paths.shape[0]):
+        count = lengths[e]
+        for k in range(count):
+            x, y = paths[e, k, 0], paths[e, k, 1]
+            if not (low[0] <= x <= high[0] and low[1] <= y <= high[1]):
+                return e
+        out[e] = count
+        if count > 1 and paths[e, count - 2, 0] == paths[e, count - 1, 0] and \
+                paths[e, count - 2, 1] == paths[e, count - 1, 1]:
+            last = -1  # the last point that differs from the last one
+            for k in range(count):
+                if paths[e, k, 0] != paths[e, count - 1, 0] or \
+                        paths[e, k, 1] != paths[e, count - 1, 1]:
+                    last = k
+            out[e] = last + 2 if last >= 0 else 1
+    return -1
+
+
+@njit(cache=True)
+def ego_points(xy: np.ndarray, speed: np.ndarray, s_before: np.ndarray, path: np.ndarray,
+               path_start: np.ndarray, path_length: np.ndarray, dt: float,
+               points: np.ndarray, guesses: np.ndarray, has_end: np.ndarray) -> None:
+    """The points to project per env (its frames, then its path's end, or the last frame
+    again when the path is used up) and their guessed s: the last s plus the distance
+    driven, the end its straight-line distance (CPython's ``math.hypot``) further on."""
+    envs, frames = speed.shape
+    for e in range(envs):
+        guess = s_before[e]
+        for f in range(frames):
+            guess += speed[e, f] * dt
+            guesses[e, f] = guess
+            points[e, f, 0], points[e, f, 1] = xy[e, f, 0], xy[e, f, 1]
+        has_end[e] = path_start[e] < path_length[e]
+        last = max(path_length[e] - 1, 0)
+        end_x = path[e, last, 0] if has_end[e] else xy[e, frames - 1, 0]
+        end_y = path[e, last, 1] if has_end[e] else xy[e, frames - 1, 1]
+        points[e, frames, 0], points[e, frames, 1] = end_x, end_y
+        guesses[e, frames] = guess + py_hypot(end_x - xy[e, frames - 1, 0],
+                                              end_y - xy[e, frames - 1, 1])
+
+
 class HighwayWorld:
     """``envs`` highway loops driven by paths (see the module docstring).
 
@@ -179,8 +227,6 @@ class HighwayWorld:
         low_xy = self.road.waypoints[:, :2].min(axis=0) - ACTION_MARGIN_M
         high_xy = self.road.waypoints[:, :2].max(axis=0) + ACTION_MARGIN_M
         self.action_low, self.action_high = low_xy, high_xy
-        self._low_rows = np.tile(low_xy, (self.path_points, 1))
-        self._high_rows = np.tile(high_xy, (self.path_points, 1))
         self.incident_penalty = {kind: float(value)
                                  for kind, value in cfg["reward_incident"].items()}
         self.progress_scale = cfg["reward_progress"] / (
@@ -208,6 +254,7 @@ class HighwayWorld:
         self.collided = np.zeros(envs, dtype=bool)
         self.done_reason = [""] * envs
         self.rngs: list[np.random.Generator | None] = [None] * envs
+        self._all_reset = False
         self._all_rows_present = self.sensor_config.dropout_probability == 0.0
 
     # ------------------------------------------------------------------ episodes
@@ -247,32 +294,22 @@ class HighwayWorld:
             raise ValueError(f"path has {len(points)} points; at most path_points = "
                              f"{self.path_points} (raise the 'path_points' config key)")
         count = len(points)
-        padded = np.zeros((1, self.path_points, 2))
-        padded[0, :count] = points
-        length = self.check_paths(padded, np.array([count]))
+        lengths = np.array([count])
+        if not points.flags.c_contiguous:
+            points = np.ascontiguousarray(points)
+        length = self.check_paths(points[None], lengths)
         return points[: int(length[0])]
 
     def check_paths(self, paths: FloatArray, lengths: IntArray) -> IntArray:
-        """Check ``(envs, path_points, 2)`` paths (their first ``lengths`` points); the
+        """Check ``(envs, points, 2)`` paths (their first ``lengths`` points); the
         lengths without trailing repeats of the last point (padding: a car parked on its
         last point would stop dead there anyway). A non-finite or out-of-bounds point
         raises ``ValueError`` naming it."""
-        used = np.arange(paths.shape[1])[None, :] < lengths[:, None]
-        # One test covers NaN, inf and out-of-bounds (NaN compares false).
-        inside = (paths >= self._low_rows) & (paths <= self._high_rows)
-        bad = used & ~(inside[..., 0] & inside[..., 1])
-        if np.count_nonzero(bad):
-            env = int(np.nonzero(bad)[0][0])
-            self._raise_bad_point(paths[env, :lengths[env]], env if self.envs > 1 else None)
-        rows = np.arange(len(lengths))
-        last = paths[rows, np.maximum(lengths - 1, 0)]
-        before = paths[rows, np.maximum(lengths - 2, 0)]
-        repeated = (lengths > 1) & (before == last).all(axis=1)
-        if not np.count_nonzero(repeated):
-            return lengths
-        differs = used & (paths != last[:, None, :]).any(axis=2)
-        last_differ = np.where(differs, np.arange(paths.shape[1])[None, :], -1).max(axis=1)
-        return np.where(repeated, np.where(last_differ >= 0, last_differ + 2, 1), lengths)
+        trimmed = np.empty(len(lengths), dtype=np.int64)
+        bad = path_lengths(paths, lengths, self.action_low, self.action_high, trimmed)
+        if bad >= 0:
+            self._raise_bad_point(paths[bad, :lengths[bad]], bad if self.envs > 1 else None)
+        return trimmed
 
     def _raise_bad_point(self, points: FloatArray, env: int | None) -> None:
         where = "" if env is None else f"env {env}: "
@@ -292,36 +329,39 @@ class HighwayWorld:
     def step(self, paths: FloatArray, lengths: IntArray) -> StepResult:
         """Every env sends its path (checked by :meth:`check_paths`) and the world runs
         ``steps_per_action`` physics frames."""
-        if any(rng is None for rng in self.rngs):
-            raise RuntimeError("call reset() before step()")
+        if not self._all_reset:
+            if any(rng is None for rng in self.rngs):
+                raise RuntimeError("call reset() before step()")
+            self._all_reset = True
         self.ego.send(paths, lengths)
         frames = self.steps_per_action
         xy, yaw, speed = self.ego.drive()
         s, d = self._project(xy, speed)
         samples = self.traffic.advance(frames, s, d, speed)
         st = self.traffic.state
-        contact = first_contacts(
-            xy, yaw, self.ego_length, self.ego_width, samples.x, samples.y, samples.heading,
-            st.length, st.width, st.ids,
-            contact_reach_sq(self.ego_length, self.ego_width, st.length, st.width))
-        progress_before = self.metrics.progress
-        incidents = self.metrics.record(xy, s, d, speed, contact)
-        self.s, self.d, self.speed = s[:, -1], d[:, -1], speed[:, -1]
+        contact = first_contacts(xy, yaw, self.ego_length, self.ego_width, samples.x,
+                                 samples.y, samples.heading, st.length, st.width, st.ids)
+        metrics = self.metrics
+        progress_before = metrics.progress.copy()
+        incidents = metrics.record(xy, s, d, speed, contact)
+        # Copies, not strided views: the kernels take C-contiguous arrays (one signature).
+        self.s, self.d, self.speed = s[:, -1].copy(), d[:, -1].copy(), speed[:, -1].copy()
         self.read_sensors()
 
-        reward = self.progress_scale * (self.metrics.progress - progress_before)
+        reward = self.progress_scale * (metrics.progress - progress_before)
         collision = np.zeros(self.envs, dtype=bool)
-        for env, new in enumerate(incidents):
-            for incident in new:
+        for env in [env for env, new in enumerate(incidents) if new]:
+            for incident in incidents[env]:
                 reward[env] += self.incident_penalty[incident.kind]
                 if incident.kind == "collision":
                     collision[env] = True
         self.collided |= collision
         stopped = self.episodes.record(self, incidents, self.d)
         terminated = collision & self.config["terminate_on_collision"]
-        lapped = ~terminated & (self.metrics.laps >= self.config["laps"])
+        lapped = ~terminated & (metrics.laps >= self.config["laps"])
         terminated = terminated | lapped | stopped
-        truncated = ~terminated & (self.metrics.time() >= self.episodes.max_duration - 1e-9)
+        truncated = ~terminated & (metrics.steps * self.rules.dt
+                                   >= self.episodes.max_duration - 1e-9)
         for env in np.flatnonzero(terminated | truncated).tolist():
             self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
                                      and self.config["terminate_on_collision"]
@@ -333,21 +373,14 @@ class HighwayWorld:
         """Frenet s, d ``(envs, frames)`` of the ego's frames; the path's end point rides
         in the same projection (into :attr:`end_sd`)."""
         envs, frames = speed.shape
-        guesses = np.empty((envs, frames + 2))
-        guesses[:, 0] = self.s
-        guesses[:, 1:-1] = speed * PHYSICS_DT  # warm start: last s plus the distance driven
-        np.add.accumulate(guesses[:, :-1], axis=1, out=guesses[:, :-1])
-        follower = self.ego
-        has_end = follower.path_start < follower.path_length
-        end = follower.path[np.arange(envs), np.maximum(follower.path_length - 1, 0)]
-        end = np.where(has_end[:, None], end, xy[:, -1])
-        # The path's end lies about its straight-line distance ahead of the car.
-        guesses[:, -1] = guesses[:, -2] + hypot(end[:, 0] - xy[:, -1, 0],
-                                                end[:, 1] - xy[:, -1, 1])
-        points = np.concatenate([xy, end[:, None, :]], axis=1)
-        s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses[:, 1:])
+        points = np.empty((envs, frames + 1, 2))
+        guesses = np.empty((envs, frames + 1))
+        has_end = np.empty(envs, dtype=np.bool_)
+        ego_points(xy, speed, self.s, self.ego.path, self.ego.path_start,
+                   self.ego.path_length, PHYSICS_DT, points, guesses, has_end)
+        s, d = self.road.reference.project(points[..., 0], points[..., 1], guesses)
         self.end_sd = np.where(has_end[:, None], np.stack([s[:, -1], d[:, -1]], axis=1), 0.0)
-        return s[:, :-1], d[:, :-1]
+        return np.ascontiguousarray(s[:, :-1]), np.ascontiguousarray(d[:, :-1])
 
     def read_sensors(self, rows: IntArray | None = None) -> None:
         """Sensor fusion of the traffic's current state (the last frame of the step)."""

@@ -5,11 +5,11 @@ one of the four edge normals do not overlap. :func:`first_contact` runs it in th
 phases, each skipping the next whenever it can:
 
 1. broad: centre distance against half the sum of the diagonals (circumscribed circles),
-   a handful of array operations over every (step, car) pair, usually the end of it;
-2. a sieve over the few pairs left, in plain Python: the separating-axis test on the ego's
-   two axes only, with a margin (:data:`_SIEVE_MARGIN_M`) far above rounding, so it drops
-   only pairs the full test would call apart (a car alongside in the next lane is near by
-   the circles but 2 m clear across);
+   for every (step, car) pair, usually the end of it;
+2. a sieve over the few pairs left: the separating-axis test on the ego's two axes only,
+   with a margin (:data:`_SIEVE_MARGIN_M`) far above rounding, so it drops only pairs the
+   full test would call apart (a car alongside in the next lane is near by the circles
+   but 2 m clear across); phases 1 and 2 are one compiled pass over the batch;
 3. :func:`boxes_overlap`, the full test, for the pairs that survive (in practice: contacts).
 """
 
@@ -18,7 +18,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
+
+_FROM_SIZES = np.zeros((0, 0))  # _near_pairs: the reach from the cars' sizes
 
 # m: slack of the sieve's test. Its projections differ from boxes_overlap's by rounding
 # (~1e-14 m); a pair it drops is at least this far apart on an axis, so surely apart.
@@ -90,31 +93,31 @@ def first_contacts(
     ego_width: float, cars_x: NDArray[np.float64], cars_y: NDArray[np.float64],
     cars_heading: NDArray[np.float64], cars_length: NDArray[np.float64],
     cars_width: NDArray[np.float64], cars_id: NDArray[np.int64],
-    reach_sq: NDArray[np.float64],
+    reach_sq: NDArray[np.float64] | None = None,
 ) -> NDArray[np.int64]:
     """:func:`first_contact` for a batch of envs: ``(envs, k)`` contact ids.
 
     ``ego_xy`` is (envs, k, 2), ``ego_heading`` (envs, k), the cars' poses (envs, k, n),
-    their sizes, ids and ``reach_sq`` (envs, n).
+    their sizes, ids and ``reach_sq`` (envs, n; ``None``: from the sizes). The broad
+    phase and the sieve are one compiled pass (:func:`_near_pairs`); the full test runs on
+    the pairs it keeps (in practice: contacts).
     """
     envs, k = ego_heading.shape
-    dx = cars_x - ego_xy[..., :1]
-    dy = cars_y - ego_xy[..., 1:]
-    distance_sq = dx * dx
-    distance_sq += dy * dy
-    near = distance_sq <= reach_sq[:, None, :]
     contact = np.full((envs, k), -1, dtype=np.int64)
-    if not np.count_nonzero(near):  # not near.any(), at a quarter of the cost
+    if cars_x.shape[-1] == 0:
         return contact
-    env, steps, cars = np.nonzero(near)
-    length, width = cars_length[env, cars], cars_width[env, cars]
-    keep = _ego_axes_sieve(dx[env, steps, cars].tolist(), dy[env, steps, cars].tolist(),
-                           ego_heading[env, steps].tolist(),
-                           cars_heading[env, steps, cars].tolist(), length.tolist(),
-                           width.tolist(), 0.5 * ego_length, 0.5 * ego_width)
-    if not keep:
+    reach_sq = _FROM_SIZES if reach_sq is None else np.ascontiguousarray(reach_sq,
+                                                                         dtype=np.float64)
+    pairs = np.empty((max(64, envs * k), 3), dtype=np.int64)
+    count = _near_pairs(ego_xy, ego_heading, 0.5 * ego_length, 0.5 * ego_width, cars_x,
+                        cars_y, cars_heading, cars_length, cars_width, reach_sq, pairs)
+    if not count:
         return contact
-    env, steps, cars = env[keep], steps[keep], cars[keep]
+    if count > len(pairs):  # more than the buffer held: once more with room for all
+        pairs = np.empty((count, 3), dtype=np.int64)
+        _near_pairs(ego_xy, ego_heading, 0.5 * ego_length, 0.5 * ego_width, cars_x, cars_y,
+                    cars_heading, cars_length, cars_width, reach_sq, pairs)
+    env, steps, cars = pairs[:count].T
     hit = boxes_overlap(
         ego_xy[env, steps], ego_heading[env, steps], ego_length, ego_width,
         np.stack([cars_x[env, steps, cars], cars_y[env, steps, cars]], axis=-1),
@@ -122,34 +125,59 @@ def first_contacts(
     )
     if hit.any():
         env, steps, cars = env[hit], steps[hit], cars[hit]
+        dx = cars_x[env, steps, cars] - ego_xy[env, steps, 0]
+        dy = cars_y[env, steps, cars] - ego_xy[env, steps, 1]
+        distance_sq = dx * dx
+        distance_sq += dy * dy
         # Nearest first, so that a step touching two cars reports the closer one.
         flat = env * k + steps
-        order = np.lexsort((distance_sq[env, steps, cars], flat))[::-1]
+        order = np.lexsort((distance_sq, flat))[::-1]
         contact.reshape(-1)[flat[order]] = cars_id[env[order], cars[order]]
     return contact
 
 
-def _ego_axes_sieve(dx: list[float], dy: list[float], ego_heading: list[float],
-                    car_heading: list[float], car_length: list[float], car_width: list[float],
-                    half_length: float, half_width: float) -> list[int]:
-    """Indices of the (ego, car) pairs not separated along the ego's length or width axis.
-
-    The separating-axis test on those two of the four axes, per pair on Python floats (a
-    few pairs, where numpy's per-call cost would dominate), loosened by
-    :data:`_SIEVE_MARGIN_M`: a pair it drops does not overlap. ``dx, dy``: car centre
-    minus ego centre.
-    """
-    cos, sin = math.cos, math.sin
-    keep = []
-    for index, (x, y, heading, other, length, width) in enumerate(
-            zip(dx, dy, ego_heading, car_heading, car_length, car_width, strict=True)):
-        c, s = cos(heading), sin(heading)
-        turn = other - heading
-        along, across = abs(cos(turn)), abs(sin(turn))
-        # The car's half extents projected on the ego's axes: its radius on each.
-        if (abs(x * c + y * s) <= half_length + 0.5 * (length * along + width * across)
-                + _SIEVE_MARGIN_M
-                and abs(y * c - x * s) <= half_width + 0.5 * (length * across + width * along)
-                + _SIEVE_MARGIN_M):
-            keep.append(index)
-    return keep
+@njit(cache=True)
+def _near_pairs(ego_xy: np.ndarray, ego_heading: np.ndarray, half_length: float,
+                half_width: float, cars_x: np.ndarray, cars_y: np.ndarray,
+                cars_heading: np.ndarray, cars_length: np.ndarray, cars_width: np.ndarray,
+                reach_sq: np.ndarray, pairs: np.ndarray) -> int:
+    """The (env, step, car) pairs within the broad phase's reach (centre distance against
+    half the sum of the diagonals) that the sieve does not separate along the ego's
+    length or width axis (the separating-axis test on those two of the four axes,
+    loosened by :data:`_SIEVE_MARGIN_M`: a pair it drops does not overlap). ``reach_sq``:
+    :func:`contact_reach_sq`, or an empty array to work it out from the sizes. Returns
+    how many; the first ``len(pairs)`` of them are written into ``pairs``."""
+    count = 0
+    envs, k, cars = cars_x.shape
+    own = math.hypot(2.0 * half_length, 2.0 * half_width)
+    reach = np.empty(cars)
+    for e in range(envs):
+        for c in range(cars):
+            if reach_sq.size:
+                reach[c] = reach_sq[e, c]
+            else:
+                radius = 0.5 * (own + math.hypot(cars_length[e, c], cars_width[e, c]))
+                reach[c] = radius * radius
+        for t in range(k):
+            ex, ey = ego_xy[e, t, 0], ego_xy[e, t, 1]
+            for c in range(cars):
+                x = cars_x[e, t, c] - ex
+                y = cars_y[e, t, c] - ey
+                distance_sq = x * x
+                distance_sq += y * y
+                if not distance_sq <= reach[c]:
+                    continue
+                heading = ego_heading[e, t]
+                co, si = math.cos(heading), math.sin(heading)
+                turn = cars_heading[e, t, c] - heading
+                along, across = abs(math.cos(turn)), abs(math.sin(turn))
+                length, width = cars_length[e, c], cars_width[e, c]
+                # The car's half extents projected on the ego's axes: its radius on each.
+                if (abs(x * co + y * si) <= half_length + 0.5 * (length * along + width * across)
+                        + _SIEVE_MARGIN_M
+                        and abs(y * co - x * si) <= half_width + 0.5 * (
+                            length * across + width * along) + _SIEVE_MARGIN_M):
+                    if count < pairs.shape[0]:
+                        pairs[count, 0], pairs[count, 1], pairs[count, 2] = e, t, c
+                    count += 1
+    return count

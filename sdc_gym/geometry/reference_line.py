@@ -26,12 +26,19 @@ line turns left (counter-clockwise).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
 from sdc_gym.geometry.exact_math import power
+from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
+from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
+from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
+from sdc_gym.geometry.projection_kernel import NEWTON_TOLERANCE_M as _NEWTON_TOLERANCE_M
+from sdc_gym.geometry.projection_kernel import newton_points
 
 FloatArray = NDArray[np.float64]
 
@@ -40,16 +47,8 @@ _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(20)
 _GL_NODES = 0.5 * (_GL_NODES + 1.0)
 _GL_WEIGHTS = 0.5 * _GL_WEIGHTS
 
-# Newton iterations used by projections (at most; they stop at convergence, 2-3 from a
-# guess within a metre), and the largest step one may take.
-_NEWTON_ITERATIONS = 6
-_MAX_NEWTON_STEP_M = 50.0
-_NEWTON_TOLERANCE_M = 1e-6
 # Batches up to this many points are projected in plain Python (see ReferenceLine._newton).
 _SCALAR_BATCH_LIMIT = 12
-# A local (warm-started) projection that lands further than this from the point, or moves
-# s by more than this, is redone globally: the car is not where the guess said.
-_LOCAL_SEARCH_TRUST_M = 25.0
 
 
 class ReferenceLineError(ValueError):
@@ -142,6 +141,8 @@ class ReferenceLine:
         # ...), for the evaluations in real arithmetic (_newton_arrays, line_frames).
         xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
         self._coef_xy = np.ascontiguousarray(xy_rows)
+        self._projection_line = np.array([self._knot_step, self._inverse_step,
+                                          self._segments, coarse_length, self._param_scale])
         self._total_param = coarse_length
 
     # ------------------------------------------------------------------ evaluation
@@ -345,13 +346,14 @@ class ReferenceLine:
         away (the car is not where the guess said)."""
         x = np.asarray(x, dtype=np.float64)
         y = np.asarray(y, dtype=np.float64)
-        s, d, moved = self._newton_arrays(x, y, np.asarray(s_guess, dtype=np.float64))
-        lost = (np.abs(moved) > _LOCAL_SEARCH_TRUST_M) | (np.abs(d) > _LOCAL_SEARCH_TRUST_M)
-        if np.count_nonzero(lost):
-            s, d = s.copy(), d.copy()
-            xl, yl = x[lost], y[lost]
+        s, d, moved, lost = self._newton_arrays(x, y, np.asarray(s_guess, dtype=np.float64),
+                                                count_lost=True)
+        if lost:
+            lost_points = (np.abs(moved) > _LOCAL_SEARCH_TRUST_M) | (
+                np.abs(d) > _LOCAL_SEARCH_TRUST_M)
+            xl, yl = x[lost_points], y[lost_points]
             s0 = self.nearest_sample_s(np.stack([xl, yl], axis=-1))
-            s[lost], d[lost], _ = self._newton_arrays(xl, yl, s0)
+            s[lost_points], d[lost_points], _ = self._newton_arrays(xl, yl, s0)
         return s, d
 
     def project_few(self, points: list[list[float]],
@@ -361,51 +363,23 @@ class ReferenceLine:
         s, d = self.project(xy[:, 0], xy[:, 1], s_guesses)
         return s.tolist(), d.tolist()
 
-    def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray
-                       ) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Newton projections of points from their guessed s: (s, d, how far s moved).
+    def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray,
+                       count_lost: bool = False) -> Any:
+        """Newton projections of points from their guessed s: (s, d, how far s moved),
+        and with ``count_lost`` how many the local search lost.
 
         Every point iterates until its own step is below the tolerance (at most
-        ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``): a complex
-        times a real is the two products, ``Re(z conj(w))`` is ``z.x w.x + z.y w.y``. The
-        closing evaluation takes d from the right normal ``1j * conj(velocity)`` and
-        ``abs(velocity)`` (``hypot``), as complex arithmetic does.
+        ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``), in one
+        compiled pass (:func:`~sdc_gym.geometry.projection_kernel.newton_points`).
         """
-        rows, step_u, inverse = self._coef_xy, self._knot_step, self._inverse_step
-        last, total, scale = self._segments - 1, self._total_param, self._param_scale
-        u0 = np.remainder(s0, self.length) * scale
-        u = u0.copy()
-        active = np.ones(u.shape, dtype=bool)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            for _ in range(_NEWTON_ITERATIONS):
-                i = (u * inverse).astype(np.intp)
-                np.minimum(i, last, out=i)
-                ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = np.moveaxis(
-                    rows[i], -1, 0)
-                t = u - i * step_u
-                offset_x = ((ax * t + bx) * t + cx) * t + dx - x
-                offset_y = ((ay * t + by) * t + cy) * t + dy - y
-                velocity_x = (a3x * t + b2x) * t + cx
-                velocity_y = (a3y * t + b2y) * t + cy
-                f = offset_x * velocity_x + offset_y * velocity_y
-                fp = (velocity_x * velocity_x + velocity_y * velocity_y) + (
-                    offset_x * (a6x * t + b2x) + offset_y * (a6y * t + b2y))
-                step = f / fp
-                np.minimum(step, _MAX_NEWTON_STEP_M, out=step)
-                np.maximum(step, -_MAX_NEWTON_STEP_M, out=step)
-                np.copyto(u, np.remainder(u - step, total), where=active)
-                active &= ~((step > -_NEWTON_TOLERANCE_M) & (step < _NEWTON_TOLERANCE_M))
-                if not np.count_nonzero(active):
-                    break
-        i = (u * inverse).astype(np.intp)
-        np.minimum(i, last, out=i)
-        ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, _, _ = np.moveaxis(rows[i], -1, 0)
-        t = u - i * step_u
-        velocity_x = (a3x * t + b2x) * t + cx
-        velocity_y = (a3y * t + b2y) * t + cy
-        point_x = ((ax * t + bx) * t + cx) * t + dx
-        point_y = ((ay * t + by) * t + cy) * t + dy
-        d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / np.hypot(velocity_x,
-                                                                              velocity_y)
-        moved = (np.remainder(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
-        return u / scale, d, moved
+        shape = np.shape(x)
+        if np.shape(y) == shape == np.shape(s0):
+            flat = [np.ascontiguousarray(a, dtype=np.float64).reshape(-1) for a in (x, y, s0)]
+        else:
+            shape = np.broadcast_shapes(np.shape(x), np.shape(y), np.shape(s0))
+            flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
+                    for a in (x, y, s0)]
+        out = np.empty((3, flat[0].size))
+        lost = newton_points(self._coef_xy, self._projection_line, self.length, *flat, *out)
+        result = out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)
+        return (*result, lost) if count_lost else result

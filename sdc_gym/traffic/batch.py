@@ -3,13 +3,13 @@
 :class:`TrafficBatch` owns the constants (config, road tables), the
 :class:`~sdc_gym.traffic.state.TrafficState` of every env and each env's generator.
 :meth:`TrafficBatch.advance` moves all envs by the same number of physics frames: the
-envs whose decision instant falls on a frame decide together (their rows taken, decided by
-:func:`~sdc_gym.traffic.decisions.decide`, written back), and the motion between
-decisions is evaluated in closed form for all of them
-(:meth:`~sdc_gym.traffic.kinematics.TrafficGeometry.segment`). Envs reset at different
-times have different phases of the decision period, so one advance may hold several
-decision rounds, each for the envs of one phase. Env ``i`` of a batch is exactly a
-single env (a batch of one) with the same generator, frame for frame.
+envs whose decision instant falls on a frame decide together
+(:func:`~sdc_gym.traffic.decisions.decide`), and the motion between decisions is
+evaluated in closed form for all of them (:func:`~sdc_gym.traffic.kinematics.segments`).
+Envs reset at different times have different phases of the decision period, so one
+advance may hold several decision rounds: round ``j`` takes every env's ``j``-th decision
+of the window (each env's segment since its previous one first). Env ``i`` of a batch is
+exactly a single env (a batch of one) with the same generator, frame for frame.
 
 Scenarios and road events (:mod:`sdc_gym.traffic.scripted`): ``object_slots`` columns
 follow the ``car_count`` cars (parked in random traffic, road objects when an event places
@@ -23,19 +23,89 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.generator_kernel import generator_pointers
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.traffic import decisions, placement
 from sdc_gym.traffic import scripted as scripting
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
-from sdc_gym.traffic.kinematics import RowsOf, TrafficGeometry
+from sdc_gym.traffic.kinematics import (
+    EGO_D,
+    EGO_S,
+    EGO_SPEED,
+    HEADING,
+    SPEED,
+    STEP,
+    VX,
+    VY,
+    D,
+    S,
+    TrafficGeometry,
+    X,
+    Y,
+)
 from sdc_gym.traffic.placement import reset_row, reset_row_to
 from sdc_gym.traffic.state import TrafficState
 from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES, spawn_probabilities
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
+
+
+@njit(cache=True)
+def plan_rounds(step: np.ndarray, frames: int, period: int, rows: np.ndarray,
+                begin: np.ndarray, end: np.ndarray) -> int:
+    """Each env's decisions in a window of ``frames`` frames from its ``step``: on the
+    window's frames ``k1, k1 + period, ...`` (``k1`` the first frame at a multiple of the
+    period). Round ``j`` holds every env's ``j``-th: ``rows[j]`` which envs have one,
+    ``end[j]`` its frame, ``begin[j]`` the previous one's (or 0); row ``rounds`` the last
+    segments (``begin`` to ``frames``). Returns the number of rounds."""
+    envs = step.shape[0]
+    rounds = 0
+    for e in range(envs):
+        first = (period - step[e] % period) % period
+        count = 0 if first >= frames else (frames - 1 - first) // period + 1
+        rounds = max(rounds, count)
+    for e in range(envs):
+        frame = (period - step[e] % period) % period
+        start = 0
+        for j in range(rounds):
+            rows[j, e] = frame < frames
+            if rows[j, e]:
+                begin[j, e], end[j, e] = start, frame
+                start = frame
+                frame += period
+            else:
+                begin[j, e] = end[j, e] = start
+        rows[rounds, e] = True
+        begin[rounds, e], end[rounds, e] = start, frames
+    return rounds
+
+
+@njit(cache=True)
+def close_window(cf: np.ndarray, ei: np.ndarray, ef: np.ndarray, step0: np.ndarray,
+                 frames: int, ego_s: np.ndarray, ego_d: np.ndarray, ego_speed: np.ndarray,
+                 loop: float,
+                 s: np.ndarray, d: np.ndarray, v: np.ndarray, x: np.ndarray, y: np.ndarray,
+                 heading: np.ndarray, vx: np.ndarray, vy: np.ndarray) -> None:
+    """The window's last frame becomes the state: every car's pose, each env's step and
+    the ego's latest s (wrapped), d and speed."""
+    last = frames - 1
+    for e in range(cf.shape[1]):
+        ei[STEP, e] = step0[e] + frames
+        ef[EGO_S, e] = py_mod(ego_s[e, last], loop)
+        ef[EGO_D, e] = ego_d[e, last]
+        ef[EGO_SPEED, e] = ego_speed[e, last]
+        for c in range(cf.shape[2]):
+            cf[S, e, c], cf[D, e, c], cf[SPEED, e, c] = s[e, last, c], d[e, last, c], \
+                v[e, last, c]
+            cf[X, e, c], cf[Y, e, c] = x[e, last, c], y[e, last, c]
+            cf[HEADING, e, c] = heading[e, last, c]
+            cf[VX, e, c], cf[VY, e, c] = vx[e, last, c], vy[e, last, c]
 
 
 class TrafficBatch:
@@ -81,20 +151,75 @@ class TrafficBatch:
         self.sustain_decisions = math.ceil(config.lane_change_sustain / self.decision_dt - 1e-9)
         self.ego_tsab = 2.0 * math.sqrt(config.idm.a_max * config.idm.b)
         self.ego_half_length = 0.5 * config.ego_length
-        # Constants of the decision kernel, shaped for its (envs, lanes, cars) arrays.
-        self.lane_column = self.lane_ids[None, :, None]
-        self.adjacent_of = self.adjacent.copy()  # [origin lane] -> adjacent lanes
-        self.penalty = np.array([np.inf, 0.0])  # [occupies]: 0 where the car is
-        self.ego_a_max = np.full((envs, 1), config.idm.a_max)
-        self.ego_tsab_column = np.full((envs, 1), self.ego_tsab)
-        self.ego_half_column = np.full((envs, 1), self.ego_half_length)
+        self.decision_constants = self._decision_constants()
+        self.placement_constants = self._placement_constants()
+        self.respawn_draws = placement.respawn_draws(self)
+        cdf = self.type_p.cumsum()
+        self.type_cdf = cdf / cdf[-1]
         self.object_slots = int(object_slots)
         self.slots = config.car_count + self.object_slots
         self.state = TrafficState(envs, self.slots, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
         self.controllers: list[scripting.TrafficController | None] = [None] * envs
         self.scripted = self.object_slots > 0
-        self._all = np.arange(envs)
+        # Each env's generator as the kernels draw from it (sdc_gym.generator_kernel).
+        self.rng_pointers = np.zeros((envs, 4), dtype=np.uint64)
+        self._all = np.ones(envs, dtype=bool)
+        self._ready = False
+        self._round_plans: dict[int, tuple[NDArray, ...]] = {}
+        self._scratch_for(self.slots)
+
+    def _decision_constants(self) -> FloatArray:
+        cfg, idm = self.config, self.config.idm
+        constants = np.zeros(decisions.CONSTANTS)
+        for index, value in (
+                (decisions.C_LOOP, self.loop), (decisions.C_RANGE, self.range),
+                (decisions.C_LANES, self.lanes), (decisions.C_LANE_WIDTH, self.lane_width),
+                (decisions.C_EGO_HALF_WIDTH, 0.5 * cfg.ego_width),
+                (decisions.C_EGO_HALF_LENGTH, self.ego_half_length),
+                (decisions.C_EGO_A_MAX, idm.a_max), (decisions.C_EGO_TSAB, self.ego_tsab),
+                (decisions.C_IDM_T, idm.T), (decisions.C_IDM_S0, idm.s0),
+                (decisions.C_IDM_MAX_BRAKING, idm.max_braking),
+                (decisions.C_IDM_FLOOR, float(idm.floor_desired_gap)),
+                (decisions.C_CLEARANCE, cfg.lane_change_clearance),
+                (decisions.C_MIN_GAIN, cfg.lane_change_min_gain),
+                (decisions.C_MAX_IMPOSED, cfg.lane_change_max_braking_imposed),
+                (decisions.C_MIN_SPEED, cfg.lane_change_min_speed),
+                (decisions.C_LC_DURATION, cfg.lane_change_duration),
+                (decisions.C_LC_STEPS, math.ceil(cfg.lane_change_duration / self.dt - 1e-9)),
+                (decisions.C_SUSTAIN, self.sustain_decisions),
+                (decisions.C_ROGUE_P, self.rogue_p),
+                (decisions.C_ROGUE_DECEL, cfg.rogue_brake_decel),
+                (decisions.C_BRAKE_STEPS, self.brake_steps),
+                (decisions.C_CUT_IN_WINDOW, self.cut_in_window_steps),
+                (decisions.C_CUT_IN_GAP, cfg.rogue_cut_in_gap),
+                (decisions.C_CUT_IN_DURATION, cfg.rogue_cut_in_duration),
+                (decisions.C_CUT_IN_STEPS,
+                 math.ceil(cfg.rogue_cut_in_duration / self.dt - 1e-9)),
+                (decisions.C_DECISION_DT, self.decision_dt)):
+            constants[index] = value
+        return constants
+
+    def _placement_constants(self) -> FloatArray:
+        cfg, idm = self.config, self.config.idm
+        constants = np.zeros(12)
+        for index, value in (
+                (placement.K_LOOP, self.loop), (placement.K_LANE_WIDTH, self.lane_width),
+                (placement.K_WANDER, cfg.lateral_wander), (placement.K_DT, self.dt),
+                (placement.K_MIN_GAP, cfg.spawn_min_gap),
+                (placement.K_EGO_HALF_WIDTH, 0.5 * cfg.ego_width),
+                (placement.K_EGO_HALF_LENGTH, self.ego_half_length),
+                (placement.K_EGO_A_MAX, idm.a_max), (placement.K_EGO_TSAB, self.ego_tsab),
+                (placement.K_IDM_T, idm.T), (placement.K_IDM_S0, idm.s0),
+                (placement.K_IDM_FLOOR, float(idm.floor_desired_gap))):
+            constants[index] = value
+        return constants
+
+    def _scratch_for(self, cars: int) -> None:
+        """Work arrays of the decision rounds (per env and object)."""
+        self.scratch_ratio = np.zeros((self.envs, cars + 1))
+        self.scratch_candidates = np.full((self.envs, self.config.respawn_per_decision), -1,
+                                          dtype=np.int64)
 
     # ------------------------------------------------------------------ helpers
     def ego_lanes(self, ego_d: FloatArray) -> NDArray[np.bool_]:
@@ -117,7 +242,7 @@ class TrafficBatch:
         if st.cars != self.slots:
             self.state = st = TrafficState(self.envs, self.slots,
                                            self.config.lane_change_duration)
-        self.rngs[env] = rng
+        self._use_generator(env, rng)
         self.controllers[env] = None
         if self.object_slots:  # the cars as without object slots, then the slots parked
             scripting.reset_random_row(self, st, env, rng, ego_s, ego_d, ego_speed)
@@ -133,7 +258,7 @@ class TrafficBatch:
         per column: scenarios, replays) with its ``controller``, its traffic clock at
         ``step`` (a replay continues the recorded one)."""
         self.scripted = True
-        self.rngs[env] = rng
+        self._use_generator(env, rng)
         self.controllers[env] = controller
         scripting.reset_slots_row(self, self.state, env, rng, ego_s, ego_d, ego_speed, slots,
                                   step, respawn_blocked_steps)
@@ -162,21 +287,41 @@ class TrafficBatch:
                 raise ValueError(f"a batch of {self.envs} envs has {self.state.cars} cars "
                                  f"per env; got {n}")
             self.state = TrafficState(1, n, self.config.lane_change_duration)
-        self.rngs[env] = rng
+        self._use_generator(env, rng)
         reset_row_to(self, self.state, env, rng, ego_s, ego_d, ego_speed, s, lane, speed,
                      desired, types)
         self._settle_pose(env)
 
+    def _rounds(self, frames: int) -> tuple[int, NDArray[np.bool_], IntArray, IntArray]:
+        """The decision rounds of a window of ``frames`` frames: how many, and per round
+        which envs decide, at which frame, and where their segment before it begins (row
+        ``rounds``: every env's last segment, to the window's end)."""
+        plan = self._round_plans.get(frames)
+        if plan is None:
+            most = frames // self.config.decision_period + 2
+            plan = self._round_plans[frames] = (
+                np.zeros((most, self.envs), dtype=np.bool_),
+                np.zeros((most, self.envs), dtype=np.int64),
+                np.zeros((most, self.envs), dtype=np.int64))
+        rows, begin, end = plan
+        count = plan_rounds(self.state.step, frames, self.config.decision_period, rows, begin,
+                            end)
+        return count, rows, begin, end
+
+    def _use_generator(self, env: int, rng: np.random.Generator) -> None:
+        if self.rngs[env] is not rng:
+            self.rngs[env] = rng
+            self.rng_pointers[env] = generator_pointers(rng)
+
     def _settle_pose(self, env: int) -> None:
+        """Env ``env``'s curvature and pose after its placement."""
         st = self.state
-        rows = np.array([env])
-        sub = st.take(rows)
-        sub.kappa = self.geometry.curvature(sub.s)
-        samples = self.geometry.samples_now(sub)
+        st.kappa[env] = self.geometry.curvature(st.s[env])
+        samples = self.geometry.samples_now(st, env)
         if self.scripted:
-            scripting.place_objects(self.geometry, sub, sub.step - 1, samples)
-        self.geometry.update_pose(sub, samples)
-        st.put(rows, sub)
+            scripting.place_objects(self.geometry, st, st.step[env:env + 1] - 1, samples,
+                                    np.array([env]))
+        self.geometry.update_pose(st, samples, env)
 
     # ------------------------------------------------------------------ motion
     def samples_now(self) -> TrafficSamples:
@@ -199,86 +344,40 @@ class TrafficBatch:
         Returns:
             :class:`TrafficSamples` of ``(envs, frames, cars)`` arrays.
         """
-        if any(rng is None for rng in self.rngs):
-            raise RuntimeError("call reset() before advance()")
+        if not self._ready:
+            if any(rng is None for rng in self.rngs):
+                raise RuntimeError("call reset() before advance()")
+            self._ready = True
         if frames < 1:
             raise ValueError(f"frames must be >= 1; got {frames}")
         st = self.state
         envs, cars = st.envs, st.cars
         shape = (envs, frames, cars)
-        s_out, d_out, v_out, dd_out = (np.empty(shape) for _ in range(4))
-        period = self.config.decision_period
+        out = tuple(np.empty(shape) for _ in range(4))
+        if self.scratch_ratio.shape != (envs, cars + 1):
+            self._scratch_for(cars)
         step0 = st.step.copy()
-        # Each env's decisions fall on frames k1, k1 + period, ... of the window. Round j
-        # takes every env's j-th decision at once: first the segment since the previous
-        # one (from each env's own start, padded to the longest), then the decisions.
-        decision = (period - step0 % period) % period  # frame of each env's next decision
-        segment_start = np.zeros(envs, dtype=np.int64)
         if cars:
-            while True:
-                rows = np.flatnonzero(decision < frames) if envs > 1 else (
-                    self._all if decision[0] < frames else self._all[:0])
-                if not len(rows):
-                    break
-                begin, end = segment_start[rows], decision[rows]
-                self._segment_into(st, rows, begin, end - begin, step0,
-                                   (s_out, d_out, v_out, dd_out), keep_end=True)
-                whole = len(rows) == envs
-                sub = st if whole else st.take(rows)
-                before = end - 1  # the ego's latest state before the decision
-                moved = before >= 0
-                if np.count_nonzero(moved):
-                    at = rows[moved], before[moved]
-                    sub.ego_s[moved] = ego_s[at] % self.loop
-                    sub.ego_d[moved] = ego_d[at]
-                    sub.ego_speed[moved] = ego_speed[at]
-                sub.step = step0[rows] + end
+            # Round j takes every env's j-th decision of the window at once: first the
+            # segment since its previous one, then the decisions.
+            rounds, rows, begin, end = self._rounds(frames)
+            for j in range(rounds):
+                self.geometry.segments(st, rows[j], begin[j], end[j], step0, out,
+                                       keep_end=True)
                 if self.scripted:
-                    lc_start = scripting.before_decision(self, sub, rows)
-                decide(self, sub, [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
+                    lc_start = scripting.before_decision_round(
+                        self, st, rows[j], end[j], step0, ego_s, ego_d, ego_speed)
+                decide(self, rows[j], end[j], step0, ego_s, ego_d, ego_speed)
                 if self.scripted:
-                    scripting.after_decision(sub, lc_start)
-                if not whole:
-                    st.put(rows, sub)
-                segment_start[rows] = end
-                decision[rows] = end + period
+                    scripting.after_decision(st, lc_start, rows[j])
             # The last segment of every env, from its last decision to the window's end.
-            self._segment_into(st, self._all, segment_start, frames - segment_start, step0,
-                               (s_out, d_out, v_out, dd_out), keep_end=False)
-        st.step = step0 + frames
-        st.ego_s = ego_s[:, -1] % self.loop
-        st.ego_d = ego_d[:, -1].copy()
-        st.ego_speed = ego_speed[:, -1].copy()
-        samples = self.geometry.pose(s_out, d_out, v_out, dd_out)
+            self.geometry.segments(st, self._all, begin[rounds], end[rounds], step0, out,
+                                   keep_end=False)
+        samples = self.geometry.pose(*out)
         if self.scripted:
             scripting.place_objects(self.geometry, st, step0, samples)
-        self.geometry.update_pose(st, samples)
+        close_window(st.car_floats, st.env_ints, st.env_floats, step0, frames, ego_s, ego_d,
+                     ego_speed, self.loop, samples.s, samples.d, samples.speed, samples.x,
+                     samples.y, samples.heading, samples.vx, samples.vy)
         return samples
 
-    def _segment_into(self, st: TrafficState, rows: IntArray, begin: IntArray,
-                      length: IntArray, step0: IntArray, out: tuple[FloatArray, ...], *,
-                      keep_end: bool) -> None:
-        """Evaluate the segments of envs ``rows`` (``length`` frames from window frame
-        ``begin``) into the window arrays ``out``, one call per (begin, length) pair;
-        with ``keep_end``, a segment's end becomes its env's state."""
-        keys = begin * (out[0].shape[1] + 1) + length
-        groups = [rows] if len(rows) == 1 else [rows[keys == key] for key in np.unique(keys)]
-        every = len(rows) == self.envs
-        for group in groups:
-            first = int(np.flatnonzero(rows == group[0])[0]) if len(groups) > 1 else 0
-            b, m = int(begin[first]), int(length[first])
-            if m == 0:
-                continue
-            whole = every and len(group) == self.envs
-            source = st if whole else RowsOf(st, group)
-            s, d, v, d_dot = self.geometry.segment(source, m, step0[group] + b)
-            if whole:
-                out[0][:, b:b + m], out[1][:, b:b + m] = s, d
-                out[2][:, b:b + m], out[3][:, b:b + m] = v, d_dot
-            else:
-                out[0][group, b:b + m], out[1][group, b:b + m] = s, d
-                out[2][group, b:b + m], out[3][group, b:b + m] = v, d_dot
-            if keep_end:
-                st.s[group] = s[:, -1] % self.loop
-                st.speed[group] = v[:, -1]
-                st.d[group] = d[:, -1]

@@ -1,17 +1,21 @@
-"""Traffic motion between decision instants, in closed form, for a batch of envs.
+"""Traffic motion between decision instants, in closed form, as compiled kernels.
 
 Between two decisions every car holds its acceleration (a braking car stops at ``v = 0``
 instead of reversing) and its lateral position follows its closed-form profile (the lane
-change's minimum-jerk quintic plus the wander sine), so the states at all physics frames
-of a *segment* come out of a handful of array expressions over ``(envs, frames, cars)``.
-Along the lane a car covers ``te (v0 + acc te / 2)`` metres by time ``te`` (``te`` = the
-time, or the stop time if sooner); divided by ``1 + kappa d`` (``kappa`` taken at the
-decision) that is arc length of the reference line, summed frame by frame from the
-segment's start.
+change's minimum-jerk quintic plus the wander sine), so the state at each physics frame
+of a *segment* is a handful of expressions of the frame's time. Along the lane a car
+covers ``te (v0 + acc te / 2)`` metres by time ``te`` (``te`` = the time, or the stop
+time if sooner); divided by ``1 + kappa d`` (``kappa`` taken at the decision) that is arc
+length of the reference line, summed frame by frame from the segment's start.
 
 :class:`TrafficGeometry` holds the road tables (point, tangent and curvature every 0.25 m,
-interpolated linearly: positions within 0.1 mm of ``reference.to_xy``) and turns Frenet
-states into world poses (:meth:`TrafficGeometry.pose`).
+interpolated linearly: positions within 0.1 mm of ``reference.to_xy``). The kernels
+(:func:`segments`, :func:`poses`, :func:`lateral`, :func:`interp`) are numba-compiled
+from the arithmetic the traffic was defined with (numpy's expressions over
+``(envs, frames, cars)``): the same operations on the same floats, so the same bits.
+The heading of the motion is the one exception: it stays numpy's ``arctan2`` over the
+whole window (:meth:`TrafficGeometry.pose`), whose SIMD version rounds differently from
+the C library's.
 """
 
 from __future__ import annotations
@@ -19,8 +23,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.state import TrafficState
@@ -30,23 +36,190 @@ IntArray = NDArray[np.int64]
 
 GEOMETRY_STEP = 0.25  # m, spacing of the geometry look-up tables
 
+# Rows of TrafficState's packed blocks, for the kernels.
+_CF = {name: row for row, name in enumerate(TrafficState.CAR_FLOATS)}
+_CI = {name: row for row, name in enumerate(TrafficState.CAR_INTS)}
+_EI = {name: row for row, name in enumerate(TrafficState.ENV_INTS)}
+_EF = {name: row for row, name in enumerate(TrafficState.ENV_FLOATS)}
+LENGTH, WIDTH, HALF_LENGTH, A_MAX, TSAB = (_CF[n] for n in (
+    "length", "width", "half_length", "a_max", "tsab"))
+S, D, SPEED, DESIRED, X, Y, HEADING, VX, VY = (_CF[n] for n in (
+    "s", "d", "speed", "desired", "x", "y", "heading", "vx", "vy"))
+KAPPA, ACC, HALF_ACC, OMEGA, PHASE, WANDER_SPEED, LC_DURATION = (_CF[n] for n in (
+    "kappa", "acc", "half_acc", "omega", "phase", "wander_speed", "lc_duration"))
+IDS, SPAWN_COUNT, TYPE_INDEX, ORIGIN, TARGET_LANE, LC_START, LC_END = (_CI[n] for n in (
+    "ids", "spawn_count", "type_index", "origin", "target_lane", "lc_start", "lc_end"))
+PENDING, HELD, BRAKE_UNTIL, CUT_IN_UNTIL, RESPAWN_WAIT = (_CI[n] for n in (
+    "pending", "held", "brake_until", "cut_in_until", "respawn_wait"))
+STEP, RESPAWN_BLOCKED_UNTIL, ROGUE_BRAKE_COUNT, ROGUE_CUT_IN_COUNT = (_EI[n] for n in (
+    "step", "respawn_blocked_until", "rogue_brake_count", "rogue_cut_in_count"))
+EGO_S, EGO_D, EGO_SPEED = (_EF[n] for n in ("ego_s", "ego_d", "ego_speed"))
 
-class RowsOf:
-    """The fields of some rows of a :class:`TrafficState`, taken when first read (the
-    segment kernels read a dozen of the state's forty fields)."""
 
-    def __init__(self, state: TrafficState, rows: IntArray) -> None:
-        self._state = state
-        self._rows = rows
+@njit(cache=True)
+def interp(x: float, grid: np.ndarray, values: np.ndarray) -> float:
+    """``np.interp(x, grid, values)`` for one ``x`` (numpy's own special cases and
+    arithmetic, ``slope * (x - grid[j]) + values[j]`` with ``j`` the last grid point at or
+    below ``x``, which a uniform grid's spacing locates at once)."""
+    n = grid.shape[0]
+    if math.isnan(x):
+        return x
+    if x > grid[n - 1]:
+        return values[n - 1]
+    if x < grid[0]:
+        return values[0]
+    j = int((x - grid[0]) / (grid[1] - grid[0]))
+    j = min(max(j, 0), n - 1)
+    while j > 0 and grid[j] > x:
+        j -= 1
+    while j < n - 1 and grid[j + 1] <= x:
+        j += 1
+    if j == n - 1 or grid[j] == x:
+        return values[j]
+    slope = (values[j + 1] - values[j]) / (grid[j + 1] - grid[j])
+    result = slope * (x - grid[j]) + values[j]
+    if math.isnan(result):
+        result = slope * (x - grid[j + 1]) + values[j + 1]
+        if math.isnan(result) and values[j] == values[j + 1]:
+            result = values[j]
+    return result
 
-    def __getattr__(self, name: str) -> NDArray:
-        value = getattr(self._state, name)[self._rows]
-        setattr(self, name, value)
-        return value
+
+@njit(cache=True)
+def interp_array(x: np.ndarray, grid: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """:func:`interp` elementwise (a flat array)."""
+    out = np.empty(x.size)
+    for i in range(x.size):
+        out[i] = interp(x[i], grid, values)
+    return out
+
+
+@njit(cache=True, inline="always")
+def lateral(cf: np.ndarray, ci: np.ndarray, e: int, c: int, base: int, k: int, dt: float,
+            lane_width: float, wander: float) -> tuple[float, float]:
+    """d and d_dot of car ``c`` of env ``e`` ``k`` frames after step ``base``: lane
+    centre plus the wander sine, plus the lane change's quintic."""
+    center = (ci[ORIGIN, e, c] + 0.5) * lane_width
+    if wander > 0.0:
+        angle = cf[OMEGA, e, c] * (base * dt + k * dt) + cf[PHASE, e, c]
+        d = math.sin(angle) * wander + center
+        d_dot = math.cos(angle) * cf[WANDER_SPEED, e, c]
+    else:
+        d = center + 0.0
+        d_dot = 0.0
+    origin, target = ci[ORIGIN, e, c], ci[TARGET_LANE, e, c]
+    if target != origin:
+        # Quintic minimum-jerk step 10 tau^3 - 15 tau^4 + 6 tau^5 and its time derivative
+        # (30 shift / duration) tau^2 (1 - tau)^2.
+        duration = cf[LC_DURATION, e, c]
+        tau = (base + k - ci[LC_START, e, c]) * (dt / duration)
+        tau = min(max(tau, 0.0), 1.0)
+        tau2 = tau * tau
+        step = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
+        rest = 1.0 - tau
+        rate = tau2 * (rest * rest)
+        shift = (target - origin) * lane_width
+        d += step * shift
+        d_dot += rate * (30.0 * shift / duration)
+    return d, d_dot
+
+
+@njit(cache=True)
+def segments(cf: np.ndarray, ci: np.ndarray, rows: np.ndarray, begin: np.ndarray,
+             end: np.ndarray, step0: np.ndarray, dt: float, lane_width: float,
+             wander: float, loop: float, s_out: np.ndarray, d_out: np.ndarray,
+             v_out: np.ndarray, dd_out: np.ndarray, keep_end: bool) -> None:
+    """Frames ``begin[e] .. end[e] - 1`` of the window (step ``step0[e]`` at its start) of
+    every env ``e`` with ``rows[e]``, with the held accelerations: s (unwrapped), d, speed
+    and d_dot into the ``(envs, frames, cars)`` outputs. ``keep_end``: the segment's end
+    becomes the env's state (s wrapped, speed, d)."""
+    envs, cars = cf.shape[1], cf.shape[2]
+    for e in range(envs):
+        if not rows[e] or end[e] <= begin[e]:
+            continue
+        b = begin[e]
+        base = step0[e] + b
+        for c in range(cars):
+            v0 = cf[SPEED, e, c]
+            acc = cf[ACC, e, c]
+            half_acc = cf[HALF_ACC, e, c]
+            kappa = cf[KAPPA, e, c]
+            s0 = cf[S, e, c]
+            # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
+            t_stop = (v0 if acc < 0.0 else math.inf) / max(-acc, 1e-12)
+            previous = 0.0
+            total = 0.0
+            for j in range(end[e] - b):
+                k = j + 1
+                t = k * dt
+                te = min(t, t_stop)
+                v = acc * te + v0
+                dist = te * (half_acc * te + v0)  # along the lane since the segment's start
+                inc = dist - previous if j else dist
+                previous = dist
+                d, d_dot = lateral(cf, ci, e, c, base, k, dt, lane_width, wander)
+                # Along-lane distance -> arc length of the reference line.
+                total += inc / (kappa * d + 1.0)
+                f = b + j
+                s_out[e, f, c] = total + s0
+                d_out[e, f, c] = d
+                v_out[e, f, c] = v
+                dd_out[e, f, c] = d_dot
+            if keep_end:
+                last = end[e] - 1
+                cf[S, e, c] = py_mod(s_out[e, last, c], loop)
+                cf[SPEED, e, c] = v_out[e, last, c]
+                cf[D, e, c] = d_out[e, last, c]
+
+
+@njit(cache=True)
+def lateral_now(cf: np.ndarray, ci: np.ndarray, step: np.ndarray, first: int, dt: float,
+                lane_width: float, wander: float, d_out: np.ndarray,
+                dd_out: np.ndarray) -> None:
+    """d and d_dot ``(rows, cars)`` of every car of the envs ``first, first + 1, ...`` (as
+    many as ``d_out`` has rows) at its env's current step."""
+    for r in range(d_out.shape[0]):
+        e = first + r
+        for c in range(cf.shape[2]):
+            d_out[r, c], dd_out[r, c] = lateral(cf, ci, e, c, step[e] - 1, 1, dt, lane_width,
+                                                wander)
+
+
+@njit(cache=True)
+def poses(table: np.ndarray, loop: float, grid_scale: float, grid_count: int,
+          clamp_cell: bool, s: np.ndarray, d: np.ndarray, v: np.ndarray, d_dot: np.ndarray,
+          s_out: np.ndarray, x_out: np.ndarray, y_out: np.ndarray, vx_out: np.ndarray,
+          vy_out: np.ndarray, dir_x: np.ndarray, dir_y: np.ndarray) -> None:
+    """World poses of Frenet states (flat arrays): wrapped s, x, y, the velocity, and the
+    direction whose angle is the heading (for a car below 1 m/s its lane's tangent
+    direction, so a (near) stopped car keeps pointing along its lane)."""
+    for n in range(s.shape[0]):
+        sw = py_mod(s[n], loop)
+        u = sw * grid_scale
+        cell = math.floor(u)
+        if clamp_cell and cell > grid_count - 1:  # s == L after rounding
+            cell = grid_count - 1
+        f = u - cell
+        row = table[int(cell)]
+        px = row[6] * f + row[0]
+        py = row[7] * f + row[1]
+        tx = row[8] * f + row[2]
+        ty = row[9] * f + row[3]
+        nx = row[10] * f + row[4]  # the right normal (ty, -tx)
+        ny = row[11] * f + row[5]
+        dn, vn, ddn = d[n], v[n], d_dot[n]
+        s_out[n] = sw
+        x_out[n] = dn * nx + px
+        y_out[n] = dn * ny + py
+        vx_out[n] = vn * tx + ddn * nx
+        vy_out[n] = vn * ty + ddn * ny
+        pace = max(vn, 1.0)
+        dir_x[n] = pace * tx + ddn * nx
+        dir_y[n] = pace * ty + ddn * ny
 
 
 class TrafficGeometry:
-    """Road tables for the traffic (see the module docstring) and the segment kernels."""
+    """Road tables for the traffic (see the module docstring)."""
 
     def __init__(self, road: HighwayMap, config: TrafficConfig, dt: float) -> None:
         self.config = config
@@ -63,140 +236,57 @@ class TrafficGeometry:
         point, tangent = self.reference.frame(grid[:-1])
         table = np.vstack([np.hstack([point, tangent]), np.hstack([point, tangent])[:1]])
         geo, geo_step = table[:-1], np.diff(table, axis=0)
-        # Component-first for one gather per lookup: rows x, y, tx, ty, ty, -tx (the right
-        # normal's components follow the tangent), then the steps to the next grid point.
-        # One extra column, the value at the end of the last cell, lets s == L (after
-        # rounding) skip the clamp of the cell index.
-        values = np.column_stack([geo, geo[:, 3], -geo[:, 2]]).T
-        steps = np.column_stack([geo_step, geo_step[:, 3], -geo_step[:, 2]]).T
-        end = values[:, -1] + 1.0 * steps[:, -1]
+        # One row per grid point: x, y, tx, ty, ty, -tx (the right normal's components
+        # follow the tangent), then the steps to the next grid point. One extra row, the
+        # value at the end of the last cell, lets s == L (after rounding) skip the clamp
+        # of the cell index.
+        values = np.column_stack([geo, geo[:, 3], -geo[:, 2]])
+        steps = np.column_stack([geo_step, geo_step[:, 3], -geo_step[:, 2]])
+        end = values[-1] + 1.0 * steps[-1]
         self.table = np.ascontiguousarray(np.vstack([
-            np.column_stack([values, end]), np.column_stack([steps, np.zeros(6)])]))
+            np.column_stack([values, steps]), np.append(end, np.zeros(6))[None]]))
         self.clamp_cell = self.loop * self.grid_scale > count
-        self.loop_0d = np.array(self.loop)
-        self.grid_scale_0d = np.array(self.grid_scale)
         kappa = self.reference.curvature(grid[:-1])
-        self.kappa_grid = grid
-        self.kappa_table = np.append(kappa, kappa[0])
+        self.kappa_grid = np.ascontiguousarray(grid)
+        self.kappa_table = np.ascontiguousarray(np.append(kappa, kappa[0]))
         # Gaps at reset are laid out in s; divide by this to hold them in lane metres too.
         self.min_scale = max(1.0 - float(np.abs(kappa).max()) * road.road_width, 0.5)
 
     def curvature(self, s: FloatArray) -> FloatArray:
         """Signed curvature at wrapped ``s`` from the table (linear interpolation)."""
-        return np.interp(s, self.kappa_grid, self.kappa_table)
+        values = np.ascontiguousarray(s, dtype=np.float64)
+        return interp_array(values.ravel(), self.kappa_grid, self.kappa_table).reshape(
+            values.shape)
 
-    # ------------------------------------------------------------------ lateral motion
-    def lateral(self, state: TrafficState | RowsOf, base: IntArray, k: IntArray,
-                angle: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
-        """d and d_dot ``(envs, frames, cars)`` at ``k`` frames after step ``base``.
-
-        ``base`` is ``(envs, 1, 1)``, ``k`` ``(envs or 1, frames, 1)``; ``angle`` the
-        wander's, if the caller has it.
-        """
-        cfg = self.config
-        center = (state.origin + 0.5) * self.lane_width
-        center = center[:, None, :]
-        if cfg.lateral_wander > 0.0:
-            if angle is None:
-                angle = state.omega[:, None, :] * (base * self.dt + k * self.dt)
-                angle += state.phase[:, None, :]
-            d = np.sin(angle)
-            d *= cfg.lateral_wander
-            d += center
-            d_dot = np.cos(angle)
-            d_dot *= state.wander_speed[:, None, :]
-        else:
-            d = center + np.zeros(np.broadcast_shapes(base.shape, k.shape))
-            d_dot = np.zeros(d.shape)
-        changing = state.target_lane != state.origin
-        if np.count_nonzero(changing):
-            # Quintic minimum-jerk step 10 tau^3 - 15 tau^4 + 6 tau^5 and its time
-            # derivative (30 shift / duration) tau^2 (1 - tau)^2, for the cars changing
-            # lanes (the others' shift is zero: they would add zeros).
-            env, car = np.nonzero(changing)
-            duration = state.lc_duration[env, car][:, None]
-            frames = np.broadcast_to(base + k, (*d.shape[:2], 1))[env, :, 0]
-            j = frames - state.lc_start[env, car][:, None]
-            tau = np.minimum(np.maximum(j * (self.dt / duration), 0.0), 1.0)
-            tau2 = tau * tau
-            step = tau2 * tau * (10.0 + tau * (6.0 * tau - 15.0))
-            rate = tau2 * (1.0 - tau) ** 2
-            shift = ((state.target_lane[env, car] - state.origin[env, car])
-                     * self.lane_width)[:, None]
-            step *= shift
-            rate *= 30.0 * shift / duration
-            d[env, :, car] += step
-            d_dot[env, :, car] += rate
-        return d, d_dot
-
-    # ------------------------------------------------------------------ segments
-    def segment(self, state: TrafficState | RowsOf, frames: int, base: IntArray
-                ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
-        """``frames`` frames with the held accelerations from every env's current state:
-        s (unwrapped), d, speed, d_dot, each ``(envs, frames, cars)``; ``base`` (``(envs,)``)
-        is the step at each segment's start."""
-        dt = self.dt
-        k = np.arange(1, frames + 1, dtype=np.int64)[None, :, None]  # frames into it
-        t = k * dt
-        base = base[:, None, None]
-        v0 = state.speed[:, None, :]
-        acc = state.acc[:, None, :]
-        # Hold the acceleration, but a braking car stops at v = 0 instead of reversing.
-        t_stop = np.where(acc < 0.0, v0, np.inf) / np.maximum(-acc, 1e-12)
-        te = np.minimum(t, t_stop)
-        v = acc * te
-        v += v0
-        inner = state.half_acc[:, None, :] * te
-        inner += v0
-        dist = te * inner  # along the lane since the segment's start
-        inc = np.empty_like(dist)
-        inc[:, 0] = dist[:, 0]
-        np.subtract(dist[:, 1:], dist[:, :-1], out=inc[:, 1:])
-        angle = None
-        if self.config.lateral_wander > 0.0:
-            angle = state.omega[:, None, :] * (base * dt + t)
-            angle += state.phase[:, None, :]
-        d, d_dot = self.lateral(state, base, k, angle)
-        # Along-lane distance -> arc length of the reference line: ds = dist / (1 + kappa d).
-        scale = state.kappa[:, None, :] * d
-        scale += 1.0
-        inc /= scale
-        s = np.add.accumulate(inc, axis=1)
-        s += state.s[:, None, :]
-        return s, d, v, d_dot
+    def segments(self, state: TrafficState, rows: NDArray[np.bool_], begin: IntArray,
+                 end: IntArray, step0: IntArray, out: tuple[FloatArray, ...], *,
+                 keep_end: bool) -> None:
+        """:func:`segments` of ``state`` into the window arrays ``out`` (s, d, v, d_dot)."""
+        segments(state.car_floats, state.car_ints, rows, begin, end, step0, self.dt,
+                 self.lane_width, self.config.lateral_wander, self.loop, *out, keep_end)
 
     def pose(self, s: FloatArray, d: FloatArray, v: FloatArray,
              d_dot: FloatArray) -> TrafficSamples:
-        """World pose of Frenet states (any shape): one table lookup for all of them."""
-        s = s % self.loop_0d
-        u = s * self.grid_scale_0d
-        # Cell index and fraction; floor is the cast's truncation for u >= 0, and u - floor
-        # is float arithmetic, which numpy runs without the int-to-float buffering of u - i.
-        cell = np.floor(u)
-        if self.clamp_cell:  # s == L after rounding; else the table's extra column
-            np.minimum(cell, self.grid_count - 1, out=cell)
-        f = u - cell
-        g = self.table.take(cell.astype(np.intp), axis=1)  # (12, ...): values, then steps
-        geo = g[6:] * f
-        geo += g[:6]  # x, y, tx, ty, ty, -tx
-        normal = geo[4:]
-        # Right normal n = (ty, -tx); velocity = v * tangent + d_dot * n.
-        xy = d * normal
-        xy += geo[:2]
-        vxy = v * geo[2:4]
-        vxy += d_dot * normal
-        # Heading of the motion; a (near) stopped car keeps pointing along its lane (for
-        # v >= 1 m/s this is the velocity itself, to the bit).
-        direction = np.maximum(v, 1.0) * geo[2:4]
-        direction += d_dot * normal
-        heading = np.arctan2(direction[1], direction[0])
-        return TrafficSamples._make(s, d, v, xy[0], xy[1], heading, vxy[0], vxy[1])
+        """World pose of Frenet states (C-contiguous arrays of any one shape)."""
+        shape = s.shape
+        outputs = np.empty((7, *shape))
+        poses(self.table, self.loop, self.grid_scale, self.grid_count, self.clamp_cell,
+              s.reshape(-1), d.reshape(-1), v.reshape(-1), d_dot.reshape(-1),
+              *(row.reshape(-1) for row in outputs))
+        heading = np.arctan2(outputs[6], outputs[5])
+        return TrafficSamples._make(outputs[0], d, v, outputs[1], outputs[2], heading,
+                                    outputs[3], outputs[4])
 
-    def samples_now(self, state: TrafficState) -> TrafficSamples:
-        """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``)."""
-        base = (state.step - 1)[:, None, None]
-        d, d_dot = self.lateral(state, base, np.ones((1, 1, 1), dtype=np.int64))
-        return self.pose(state.s[:, None, :], d, state.speed[:, None, :], d_dot)
+    def samples_now(self, state: TrafficState, env: int | None = None) -> TrafficSamples:
+        """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``;
+        with ``env``, that env's only: ``(1, 1, cars)``)."""
+        rows = slice(None) if env is None else slice(env, env + 1)
+        shape = (state.envs if env is None else 1, 1, state.cars)
+        d, d_dot = np.empty(shape), np.empty(shape)
+        lateral_now(state.car_floats, state.car_ints, state.step, 0 if env is None else env,
+                    self.dt, self.lane_width, self.config.lateral_wander, d[:, 0], d_dot[:, 0])
+        return self.pose(state.s[rows, None, :].copy(), d,
+                         state.speed[rows, None, :].copy(), d_dot)
 
     @staticmethod
     def update_pose(state: TrafficState, samples: TrafficSamples,

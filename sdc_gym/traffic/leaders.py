@@ -1,185 +1,219 @@
 """The nearest object ahead and behind every car, in every lane: one sort per env.
 
 A car's leader in a lane is the object (a car or the ego) occupying that lane with the
-smallest positive gap in s ahead of it; its follower the one with the smallest gap
-behind (a gap of 0, the same s, counts as behind; the car itself never counts). Gaps are
-modular: ``rel`` holds every object's s minus the ego's, folded to ``[-L/2, L/2)``, and
-the difference of two of them is the gap, folded once more to ``[-L/2, L/2)`` in the envs
-where objects lie a quarter loop or more from the ego (``fold``). Ties (equal gaps) go to
-the lowest object index.
+smallest positive gap ``delta`` in s ahead of it; its follower the one with the smallest
+``-delta >= 0`` behind it (a gap of 0, the same s, counts as behind; the car itself never
+counts); ties go to the lowest object index. ``rel`` holds every object's s minus the
+ego's, folded to ``[-L/2, L/2)``, and ``delta`` is the difference of two of them,
+``rel[j] - rel[i]``, folded once more (``((delta + L/2) % L) - L/2``) in the envs where
+objects lie a quarter loop or more from the ego (``fold``). That is the definition, the
+comparison of every car with every object, as the traffic first computed it.
 
-Instead of comparing every car with every object (``O(n^2)`` per lane), the objects are
-sorted by ``rel`` once per env, and per lane the next and previous occupant of every
-sorted position come from one cumulative minimum and maximum: ``O(n log n)``. Without
-folding, the leader of car ``i`` is the first occupant after ``i``'s block of equal
-``rel`` values and its follower the last occupant up to that block (the lowest index
-among equals, ``i`` left out). With folding, the loop wraps: the first occupant overall
-(smallest ``rel``) may lie ahead and the last one behind, and the nearer of the two
-candidates per side wins.
+It is evaluated without the ``n x n`` comparison: the objects are sorted by ``rel`` once
+per env, and for a car ``i`` the gap ``delta`` is a non-decreasing function of the sorted
+position (subtraction and rounding are monotonic); with folding it is so on each of at
+most three runs of positions (where ``delta + L/2`` is below 0, within ``[0, L)``, above),
+whose bounds are found by bisection. On each run the first position with ``delta > 0`` is
+found by bisection, and per lane the next and previous occupant of any position come
+from two tables (first occupant at or after, last at or before) built in one pass: the
+leader in a run is the first occupant from there, the follower the last occupant before
+it (``i`` skipped), and a following run of equal gaps (ties after rounding) is walked to
+its lowest index. ``O(n log n)`` per env instead of ``O(n^2)``, and the same result.
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
-from numpy.typing import NDArray
+from numba import njit
 
-from sdc_gym.traffic.gather import gather
-
-FloatArray = NDArray[np.float64]
-IntArray = NDArray[np.intp]
+from sdc_gym.geometry.exact_math import py_mod
 
 
-def nearest_objects(rel: FloatArray, occupies: NDArray[np.bool_], fold: NDArray[np.bool_],
-                    loop: float) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """Leaders and followers of the cars in every lane (see the module docstring).
+@njit(cache=True, inline="always")
+def _gap(rel: np.ndarray, order: np.ndarray, p: int, rel_i: float, fold: bool,
+         half: float, loop: float) -> float:
+    delta = rel[order[p]] - rel_i
+    if fold:
+        delta = py_mod(delta + half, loop) - half
+    return delta
+
+
+@njit(cache=True, inline="always")
+def _first_above(rel: np.ndarray, order: np.ndarray, low: int, high: int, rel_i: float,
+                 fold: bool, half: float, loop: float) -> int:
+    """First position in [low, high) whose gap is > 0 (gaps non-decreasing there)."""
+    while low < high:
+        middle = (low + high) >> 1
+        if _gap(rel, order, middle, rel_i, fold, half, loop) > 0.0:
+            high = middle
+        else:
+            low = middle + 1
+    return low
+
+
+@njit(cache=True)
+def _stable_order(values: np.ndarray, order: np.ndarray) -> None:
+    """``order`` = the stable argsort of ``values`` (``np.argsort(kind="stable")``'s
+    permutation: a stable sort's is unique): insertion sort for the usual dozen objects,
+    a bottom-up merge sort for many (written out: numba's argsort costs seconds to
+    compile)."""
+    n = values.shape[0]
+    for i in range(n):
+        order[i] = i
+    if n <= 64:
+        for i in range(1, n):
+            value = values[i]
+            j = i
+            while j > 0 and values[order[j - 1]] > value:
+                order[j] = order[j - 1]
+                j -= 1
+            order[j] = i
+        return
+    source, target = order, np.empty(n, dtype=order.dtype)
+    width, passes = 1, 0
+    while width < n:
+        for low in range(0, n, 2 * width):
+            middle, high = min(low + width, n), min(low + 2 * width, n)
+            a, b = low, middle
+            for k in range(low, high):
+                # Ties take the left run's first: stable.
+                if a < middle and (b >= high or values[source[b]] >= values[source[a]]):
+                    target[k] = source[a]
+                    a += 1
+                else:
+                    target[k] = source[b]
+                    b += 1
+        source, target = target, source
+        width *= 2
+        passes += 1
+    if passes % 2:  # the result is in the work array
+        for i in range(n):
+            order[i] = source[i]
+
+
+@njit(cache=True)
+def nearest_objects(rel: np.ndarray, occupies: np.ndarray, fold: bool, loop: float,
+                    order: np.ndarray, position: np.ndarray, first_from: np.ndarray,
+                    last_upto: np.ndarray, ahead: np.ndarray, ahead_gap: np.ndarray,
+                    behind: np.ndarray, behind_gap: np.ndarray) -> None:
+    """Leaders and followers of one env's cars in every lane (see the module docstring).
 
     Args:
-        rel: ``(envs, objects)`` s minus the ego's, folded; the cars first, the ego last.
-        occupies: ``(envs, lanes, objects)`` which lanes each object occupies.
-        fold: ``(envs,)`` whether gaps are folded in that env.
+        rel: ``(objects,)`` s minus the ego's, folded; the cars first, the ego last.
+        occupies: ``(lanes, objects)`` which lanes each object occupies.
+        fold: whether gaps are folded once more.
         loop: the loop length (m).
-
-    Returns:
-        ``(ahead, ahead_gap, behind, behind_gap)``, each ``(envs, lanes, cars)``: the
-        object index (0 where there is none) and the gap in s (``inf`` where none; the
-        gap behind is the negated difference, so ``>= 0``).
+        order: ``(objects,)`` and ``position`` ``(objects + 4,)`` work arrays;
+            ``first_from``, ``last_upto``: ``(lanes, objects + 1)`` work arrays.
+        ahead, ahead_gap, behind, behind_gap: ``(lanes, cars)`` outputs: the object
+            index (0 where there is none) and the gap in s (``inf`` where none; the gap
+            behind is the negated difference, ``>= 0``).
     """
-    envs, objects = rel.shape
+    objects = rel.shape[0]
     cars = objects - 1
-    lanes = occupies.shape[1]
-    positions = _positions(objects)
-    order = rel.argsort(axis=1, kind="stable")  # by rel, then by index
-    # Sorted rel with a sentinel column (position `objects`: none) of +inf (ahead) and
-    # -inf (behind); the object index there is 0.
-    sorted_hi = np.empty((envs, objects + 1))
-    sorted_rel = sorted_hi[:, :-1]
-    sorted_rel[...] = gather(rel, order)
-    sorted_hi[:, -1] = np.inf
-    sorted_lo = sorted_hi.copy()
-    sorted_lo[:, -1] = -np.inf
-    order_ext = np.zeros((envs, objects + 1), dtype=np.intp)
-    order_ext[:, :-1] = order
-    ranks = np.empty((envs, objects), dtype=np.intp)
-    ranks[_rows(envs), order] = positions
-    car_rank = ranks[:, None, :cars]
-    ties = np.count_nonzero(sorted_rel[:, 1:] == sorted_rel[:, :-1])
-    block_start = None
-    if ties:  # blocks of equal rel: first position of each one's block, first after it
-        new_block = np.ones((envs, objects), dtype=bool)
-        np.not_equal(sorted_rel[:, 1:], sorted_rel[:, :-1], out=new_block[:, 1:])
-        block_start = np.maximum.accumulate(np.where(new_block, positions, 0), axis=1)
-        block_end = np.full((envs, objects), objects, dtype=np.intp)
-        block_end[:, :-1] = np.minimum.accumulate(
-            np.where(new_block, positions, objects)[:, :0:-1], axis=1)[:, ::-1]
-        car_end = gather(block_end[:, None, :], car_rank)
-    else:
-        car_end = car_rank + 1
-    # Per lane, in sorted order: the first occupant at or after each position (objects:
-    # none) and the last one at or before it (-1: none). Both get one extra column, so
-    # that position `objects` (past the end) and -1 (before the start) can be looked up.
-    member = gather(occupies, order[:, None, :])
-    first_from = np.full((envs, lanes, objects + 1), objects, dtype=np.intp)
-    np.minimum.accumulate(np.where(member, positions, objects)[..., ::-1], axis=2,
-                          out=first_from[..., -2::-1])
-    last_upto = np.full((envs, lanes, objects + 1), -1, dtype=np.intp)  # [p + 1]: <= p
-    np.maximum.accumulate(np.where(member, positions, -1), axis=2, out=last_upto[..., 1:])
-
-    ahead_pos = gather(first_from, car_end)  # the first occupant past i's block
-    # Behind: the last occupant up to i's block but i, then the first (lowest index)
-    # occupant of that one's block, i excluded.
-    behind_pos = gather(last_upto, car_end)
-    is_self = behind_pos == car_rank
-    if np.count_nonzero(is_self):
-        behind_pos = np.where(is_self, gather(last_upto, car_rank), behind_pos)
-    if block_start is not None:
-        first = gather(first_from, gather(block_start[:, None, :], np.maximum(behind_pos, 0)))
-        first_is_self = first == car_rank
-        if np.count_nonzero(first_is_self):
-            first = np.where(first_is_self, gather(first_from, car_rank + 1), first)
-        behind_pos = np.where(behind_pos >= 0, first, -1)
-    behind_pos %= objects + 1  # -1 (none) -> the sentinel column
-
-    car_rel = rel[:, None, :cars]
-    ahead = gather(order_ext[:, None, :], ahead_pos)
-    ahead_gap = gather(sorted_hi[:, None, :], ahead_pos)
-    ahead_gap -= car_rel
-    behind = gather(order_ext[:, None, :], behind_pos)
-    behind_delta = gather(sorted_lo[:, None, :], behind_pos)
-    behind_delta -= car_rel
-    if np.count_nonzero(fold):
-        ahead, ahead_gap, behind, behind_delta = _wrap(
-            fold, loop, order_ext, sorted_hi, sorted_lo, car_rel, first_from, last_upto,
-            block_start, ahead, ahead_gap, behind, behind_delta)
-    # The gap behind as the search measured it: the negated difference (+ 0.0 turns the
-    # -0.0 of a tie into 0.0, as the sum with a zero penalty did).
-    np.negative(behind_delta, out=behind_delta)
-    behind_delta += 0.0
-    return ahead, ahead_gap, behind, behind_delta
-
-
-def _wrap(fold: NDArray[np.bool_], loop: float, order_ext: IntArray, sorted_hi: FloatArray,
-          sorted_lo: FloatArray, car_rel: FloatArray, first_from: IntArray,
-          last_upto: IntArray, block_start: IntArray | None, ahead: IntArray,
-          ahead_gap: FloatArray, behind: IntArray, behind_delta: FloatArray
-          ) -> tuple[IntArray, FloatArray, IntArray, FloatArray]:
-    """Folded envs: gaps fold once more, and the loop's other end offers one more
-    candidate per side (the first occupant overall ahead, the last one behind)."""
+    lanes = occupies.shape[0]
     half = 0.5 * loop
-    objects = sorted_hi.shape[1] - 1
-    cars = car_rel.shape[-1]
-    shape = ahead.shape
-    folded_ahead = _fold(ahead_gap, half, loop)
-    folded_behind = _fold(behind_delta, half, loop)
-    wrap_ahead_pos = np.ascontiguousarray(np.broadcast_to(first_from[..., :1], shape))
-    wrap_ahead = gather(order_ext[:, None, :], wrap_ahead_pos)
-    wrap_ahead_gap = _fold(gather(sorted_hi[:, None, :], wrap_ahead_pos) - car_rel, half, loop)
-    last = last_upto[..., -1:]  # the last occupant overall, then its block's first
-    if block_start is not None:
-        last = np.where(last >= 0, gather(first_from, gather(
-            block_start[:, None, :], np.maximum(last, 0))), -1)
-    wrap_behind_pos = np.ascontiguousarray(np.broadcast_to(last % (objects + 1), shape))
-    wrap_behind = gather(order_ext[:, None, :], wrap_behind_pos)
-    wrap_behind_delta = _fold(gather(sorted_lo[:, None, :], wrap_behind_pos) - car_rel,
-                              half, loop)
-    ahead_ok = folded_ahead > 0.0
-    wrap_ok = wrap_ahead_gap > 0.0
-    take_wrap = wrap_ok & (~ahead_ok | (wrap_ahead_gap < folded_ahead)
-                           | ((wrap_ahead_gap == folded_ahead) & (wrap_ahead < ahead)))
-    new_ahead = np.where(take_wrap, wrap_ahead, np.where(ahead_ok, ahead, 0))
-    new_gap = np.where(take_wrap, wrap_ahead_gap, np.where(ahead_ok, folded_ahead, np.inf))
-    behind_ok = folded_behind <= 0.0
-    wrap_ok = (wrap_behind_delta <= 0.0) & (wrap_behind != np.arange(cars))
-    take_wrap = wrap_ok & (~behind_ok | (wrap_behind_delta > folded_behind)
-                           | ((wrap_behind_delta == folded_behind) & (wrap_behind < behind)))
-    new_behind = np.where(take_wrap, wrap_behind, np.where(behind_ok, behind, 0))
-    new_delta = np.where(take_wrap, wrap_behind_delta,
-                         np.where(behind_ok, folded_behind, -np.inf))
-    rows = fold[:, None, None]
-    return (np.where(rows, new_ahead, ahead), np.where(rows, new_gap, ahead_gap),
-            np.where(rows, new_behind, behind), np.where(rows, new_delta, behind_delta))
+    _stable_order(rel, order)
+    for p in range(objects):
+        position[order[p]] = p
+    # first_from[lane, p]: first position >= p occupying the lane (objects: none);
+    # last_upto[lane, p + 1]: last position <= p occupying it (-1: none).
+    for lane in range(lanes):
+        first_from[lane, objects] = objects
+        for p in range(objects - 1, -1, -1):
+            first_from[lane, p] = p if occupies[lane, order[p]] else first_from[lane, p + 1]
+        last_upto[lane, 0] = -1
+        for p in range(objects):
+            last_upto[lane, p + 1] = p if occupies[lane, order[p]] else last_upto[lane, p]
+    bounds = position[objects:]  # the runs' bounds (the caller's room after the positions)
+    for i in range(cars):
+        rel_i = rel[i]
+        me = position[i]
+        # Runs of positions on which the gap is non-decreasing.
+        runs = 1
+        bounds[0], bounds[1] = 0, objects
+        if fold:
+            # delta + L/2 < 0 on a first run, >= L on a last one.
+            low, high = 0, objects
+            while low < high:
+                middle = (low + high) >> 1
+                if (rel[order[middle]] - rel_i) + half >= 0.0:
+                    high = middle
+                else:
+                    low = middle + 1
+            start = low
+            low, high = start, objects
+            while low < high:
+                middle = (low + high) >> 1
+                if (rel[order[middle]] - rel_i) + half >= loop:
+                    high = middle
+                else:
+                    low = middle + 1
+            bounds[0], bounds[1], bounds[2], bounds[3] = 0, start, low, objects
+            runs = 3
+        for lane in range(lanes):
+            best_gap, best = math.inf, 0
+            best_back, back = math.inf, 0
+            for r in range(runs):
+                a, b = bounds[r], bounds[r + 1]
+                if a >= b:
+                    continue
+                c = _first_above(rel, order, a, b, rel_i, fold, half, loop)
+                # Ahead: the first occupant from c, then its equal-gap successors.
+                q = first_from[lane, c]
+                if q < b:
+                    gap = _gap(rel, order, q, rel_i, fold, half, loop)
+                    index = order[q]
+                    q = first_from[lane, q + 1]
+                    while q < b and _gap(rel, order, q, rel_i, fold, half, loop) == gap:
+                        index = min(index, order[q])
+                        q = first_from[lane, q + 1]
+                    if gap < best_gap or (gap == best_gap and index < best):
+                        best_gap, best = gap, index
+                # Behind: the last occupant before c (i skipped), then its equal-gap
+                # predecessors.
+                q = last_upto[lane, c]
+                if q == me:
+                    q = last_upto[lane, q]
+                if q >= a:
+                    gap = -_gap(rel, order, q, rel_i, fold, half, loop) + 0.0
+                    index = order[q]
+                    q = last_upto[lane, q]
+                    while q >= a:
+                        if q != me:
+                            if -_gap(rel, order, q, rel_i, fold, half, loop) + 0.0 != gap:
+                                break
+                            index = min(index, order[q])
+                        q = last_upto[lane, q]
+                    if gap < best_back or (gap == best_back and index < back):
+                        best_back, back = gap, index
+            ahead[lane, i], ahead_gap[lane, i] = best, best_gap
+            behind[lane, i], behind_gap[lane, i] = back, best_back
 
 
-def _fold(delta: FloatArray, half: float, loop: float) -> FloatArray:
-    """Differences folded to ``[-L/2, L/2)`` (+-inf stay as they are)."""
-    with np.errstate(invalid="ignore"):
-        folded = np.remainder(delta + half, loop) - half
-    return np.where(np.isinf(delta), delta, folded)
-
-
-_CACHE: dict[tuple[str, int], NDArray[np.intp]] = {}
-
-
-def _positions(count: int) -> NDArray[np.intp]:
-    """``arange(count)`` (kept)."""
-    key = ("positions", count)
-    if key not in _CACHE:
-        _CACHE[key] = np.arange(count)
-    return _CACHE[key]
-
-
-def _rows(envs: int) -> NDArray[np.intp]:
-    """``arange(envs)[:, None]`` (kept)."""
-    key = ("rows", envs)
-    if key not in _CACHE:
-        _CACHE[key] = np.arange(envs)[:, None]
-    return _CACHE[key]
+@njit(cache=True)
+def nearest_objects_by_comparison(rel: np.ndarray, occupies: np.ndarray, fold: bool,
+                                  loop: float, ahead: np.ndarray, ahead_gap: np.ndarray,
+                                  behind: np.ndarray, behind_gap: np.ndarray) -> None:
+    """The definition itself, every car against every object (``O(n^2)``): the known
+    answer :func:`nearest_objects` is tested against."""
+    objects = rel.shape[0]
+    half = 0.5 * loop
+    for lane in range(occupies.shape[0]):
+        for i in range(objects - 1):
+            best_gap, best = math.inf, 0
+            best_back, back = math.inf, 0
+            for j in range(objects):
+                if not occupies[lane, j]:
+                    continue
+                delta = rel[j] - rel[i]
+                if fold:
+                    delta = py_mod(delta + half, loop) - half
+                if delta > 0.0 and delta < best_gap:
+                    best_gap, best = delta, j
+                if j != i and -delta >= 0.0 and -delta + 0.0 < best_back:
+                    best_back, back = -delta + 0.0, j
+            ahead[lane, i], ahead_gap[lane, i] = best, best_gap
+            behind[lane, i], behind_gap[lane, i] = back, best_back

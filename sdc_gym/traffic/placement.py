@@ -3,7 +3,9 @@
 Both work on one env's row of a :class:`~sdc_gym.traffic.state.TrafficState` at a time
 (VMAS's ``reset_world_at(env_index)``): they draw from that env's generator, a car at a
 time, so a row is laid out exactly as a single env with that generator would lay it out.
-The rules are in :mod:`sdc_gym.traffic.highway_traffic` ("Respawn rule").
+The rules are in :mod:`sdc_gym.traffic.highway_traffic` ("Respawn rule"). A respawn's
+search over its candidate spots (:func:`find_spot`) and the writing of a car
+(:func:`write_car`) are compiled; the draws stay the generator's own calls, in order.
 """
 
 from __future__ import annotations
@@ -12,12 +14,55 @@ import math
 from typing import Any
 
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
+from sdc_gym import generator_kernel as draw
+from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.traffic.config import MPH
-from sdc_gym.traffic.idm import desired_gap, max_speed_for_gap
+from sdc_gym.traffic.idm import max_speed_for_gap
+from sdc_gym.traffic.kinematics import (
+    A_MAX,
+    ACC,
+    BRAKE_UNTIL,
+    CUT_IN_UNTIL,
+    DESIRED,
+    EGO_D,
+    EGO_S,
+    EGO_SPEED,
+    HALF_ACC,
+    HALF_LENGTH,
+    HELD,
+    LC_END,
+    LC_START,
+    LENGTH,
+    OMEGA,
+    ORIGIN,
+    PENDING,
+    PHASE,
+    RESPAWN_BLOCKED_UNTIL,
+    RESPAWN_WAIT,
+    SPAWN_COUNT,
+    SPEED,
+    STEP,
+    TARGET_LANE,
+    TSAB,
+    TYPE_INDEX,
+    WANDER_SPEED,
+    WIDTH,
+    D,
+    S,
+    interp,
+)
 from sdc_gym.traffic.state import IDLE, NEVER, TrafficState
-from sdc_gym.traffic.vehicle_types import VEHICLE_TYPES
+from sdc_gym.traffic.vehicle_types import (
+    TYPE_COMFORT_ACCEL,
+    TYPE_COMFORT_DECEL,
+    TYPE_LENGTHS,
+    TYPE_MAX_SPEED_MPH,
+    TYPE_WIDTHS,
+    VEHICLE_TYPES,
+)
 
 # The kernels take the batch (sdc_gym.traffic.batch.TrafficBatch, which imports them) for
 # its constants: typed by name only, so that the modules do not import each other.
@@ -30,37 +75,57 @@ SPAWN_CANDIDATES = 24  # random spots tried per side when placing one car
 RESPAWN_RETRY_STEPS = 100  # a car that found no room to respawn retries after this
 RESPAWN_PAUSE_STEPS = 50  # and after any such failure nobody tries for this long
 
+# The placement constants, in this order (TrafficBatch.placement_constants).
+(K_LOOP, K_LANE_WIDTH, K_WANDER, K_DT, K_MIN_GAP, K_EGO_HALF_WIDTH, K_EGO_HALF_LENGTH,
+ K_EGO_A_MAX, K_EGO_TSAB, K_IDM_T, K_IDM_S0, K_IDM_FLOOR) = range(12)
+_TYPE_LENGTH = TYPE_LENGTHS.copy()
+_TYPE_WIDTH = TYPE_WIDTHS.copy()
+_TYPE_ACCEL = TYPE_COMFORT_ACCEL.copy()
+_TYPE_DECEL = TYPE_COMFORT_DECEL.copy()
+STEP_ROW, RESPAWN_BLOCKED_ROW = STEP, RESPAWN_BLOCKED_UNTIL
+
 
 def new_car(batch: TrafficBatch, st: TrafficState, r: int, i: int, type_index: int,
             s: float, lane: int, speed: float, desired: float,
             rng: np.random.Generator) -> None:
-    """Write a fresh car into slot ``i`` of row ``r``."""
-    cfg = batch.config
-    vtype = VEHICLE_TYPES[type_index]
-    st.type_index[r, i] = type_index
-    st.length[r, i] = vtype.length
-    st.width[r, i] = vtype.width
-    st.half_length[r, i] = 0.5 * vtype.length
-    st.a_max[r, i] = vtype.comfort_accel
-    st.tsab[r, i] = 2.0 * math.sqrt(vtype.comfort_accel * vtype.comfort_decel)
-    st.s[r, i] = s
-    st.speed[r, i] = speed
-    st.desired[r, i] = desired
-    st.origin[r, i] = st.target_lane[r, i] = lane
-    st.respawn_wait[r, i] = 0
-    st.lc_start[r, i] = NEVER
-    st.lc_end[r, i] = IDLE
-    st.pending[r, i] = -1
-    st.held[r, i] = 0
-    st.acc[r, i] = st.half_acc[r, i] = 0.0
-    st.brake_until[r, i] = st.cut_in_until[r, i] = 0
-    omega = st.omega[r]
-    phase = st.phase[r]
-    omega[i] = 2.0 * np.pi / rng.uniform(*cfg.wander_period)
-    phase[i] = rng.uniform(0.0, 2.0 * np.pi)
-    st.wander_speed[r, i] = cfg.lateral_wander * omega[i]
-    st.d[r, i] = (lane + 0.5) * batch.lane_width + cfg.lateral_wander * math.sin(
-        omega[i] * int(st.step[r]) * batch.dt + phase[i])
+    """Write a fresh car into slot ``i`` of row ``r`` (its wander drawn from ``rng``)."""
+    period = rng.uniform(*batch.config.wander_period)
+    phase = rng.uniform(0.0, 2.0 * np.pi)
+    write_car(st.car_floats, st.car_ints, st.step, batch.placement_constants, r, i,
+              type_index, s, lane, speed, desired, period, phase)
+
+
+@njit(cache=True)
+def write_car(cf: np.ndarray, ci: np.ndarray, step: np.ndarray, constants: np.ndarray,
+              r: int, i: int, type_index: int, s: float, lane: int, speed: float,
+              desired: float, period: float, phase: float) -> None:
+    """A fresh car of type ``type_index`` in slot ``i`` of row ``r``: at ``s`` in
+    ``lane``, ``speed``, wanting ``desired``; its wander of ``period`` s at ``phase``."""
+    length = _TYPE_LENGTH[type_index]
+    accel, decel = _TYPE_ACCEL[type_index], _TYPE_DECEL[type_index]
+    wander, lane_width, dt = constants[K_WANDER], constants[K_LANE_WIDTH], constants[K_DT]
+    ci[TYPE_INDEX, r, i] = type_index
+    cf[LENGTH, r, i] = length
+    cf[WIDTH, r, i] = _TYPE_WIDTH[type_index]
+    cf[HALF_LENGTH, r, i] = 0.5 * length
+    cf[A_MAX, r, i] = accel
+    cf[TSAB, r, i] = 2.0 * math.sqrt(accel * decel)
+    cf[S, r, i] = s
+    cf[SPEED, r, i] = speed
+    cf[DESIRED, r, i] = desired
+    ci[ORIGIN, r, i] = ci[TARGET_LANE, r, i] = lane
+    ci[RESPAWN_WAIT, r, i] = 0
+    ci[LC_START, r, i] = NEVER
+    ci[LC_END, r, i] = IDLE
+    ci[PENDING, r, i] = -1
+    ci[HELD, r, i] = 0
+    cf[ACC, r, i] = cf[HALF_ACC, r, i] = 0.0
+    ci[BRAKE_UNTIL, r, i] = ci[CUT_IN_UNTIL, r, i] = 0
+    omega = 2.0 * np.pi / period
+    cf[OMEGA, r, i] = omega
+    cf[PHASE, r, i] = phase
+    cf[WANDER_SPEED, r, i] = wander * omega
+    cf[D, r, i] = (lane + 0.5) * lane_width + wander * math.sin(omega * step[r] * dt + phase)
 
 
 def _row_objects(batch: TrafficBatch, st: TrafficState, r: int
@@ -81,109 +146,190 @@ def _row_objects(batch: TrafficBatch, st: TrafficState, r: int
     return s_all, d_all, v_all, occupies, half, a, tsab
 
 
-def find_spot(batch: TrafficBatch, st: TrafficState, r: int, placed: NDArray[np.bool_],
-              type_index: int, offsets: FloatArray, lanes: IntArray,
-              desired: FloatArray) -> tuple[int, float]:
-    """First candidate (ego s + offset, lane) satisfying the respawn rule, and its speed.
+def choice(rng: np.random.Generator, cdf: FloatArray) -> int:
+    """``rng.choice(len(p), p=p)`` for ``cdf = p.cumsum() / p.cumsum()[-1]``: numpy's own
+    draw (one ``random()`` looked up in the cdf), without its checks per call."""
+    return int(cdf.searchsorted(rng.random(), side="right"))
 
-    ``placed`` masks the cars that count; the ego always counts. Returns (-1, 0.0)
-    when no candidate fits.
-    """
+
+@njit(cache=True)
+def recycle_rows(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
+                 constants: np.ndarray, kappa_grid: np.ndarray, kappa_table: np.ndarray,
+                 type_cdf: np.ndarray, bands: np.ndarray, lanes: int, candidates: np.ndarray,
+                 rngs: np.ndarray, ratio: np.ndarray) -> None:
+    """Respawn every row's ``candidates`` (cars beyond ``spawn_range``, the farthest
+    first, -1 padded; :func:`~sdc_gym.traffic.decisions.begin_decisions` picks them),
+    each row drawing from its own generator (``rngs[r]``): :func:`recycle_row`. A row
+    whose cars moved gets their IDM speed ratios ``max(v, 0) / v0`` anew (``ratio``)."""
+    cars = cf.shape[2]
+    for r in range(candidates.shape[0]):
+        if candidates[r, 0] < 0:
+            continue
+        if recycle_row(cf, ci, ei, ef, constants, kappa_grid, kappa_table, type_cdf, bands,
+                       lanes, r, candidates[r], rngs[r]):
+            for c in range(cars):
+                ratio[r, c] = max(cf[SPEED, r, c], 0.0) / cf[DESIRED, r, c]
+
+
+def respawn_draws(batch: TrafficBatch) -> FloatArray:
+    """The bounds of a respawn's draws, as :func:`recycle_row` takes them: the bands
+    ahead and behind (m), the desired speeds ahead and behind (mph), the wander period
+    (s), the chance of the side ahead."""
     cfg = batch.config
-    reference = batch.reference
-    vtype = VEHICLE_TYPES[type_index]
-    s_all, d_all, v_all, occupies, half, a_all, tsab_all = _row_objects(batch, st, r)
-    idx = np.append(np.flatnonzero(placed), st.cars)  # the ego is object n
-    s_o = s_all[idx]
-    len_o = 2.0 * half[idx]
-    v_o = v_all[idx]
-    occ_o = occupies[idx]
-    s_c = reference.wrap_s(st.ego_s[r] + offsets)
-    scale_c = 1.0 + batch.geometry.curvature(s_c) * ((lanes + 0.5) * batch.lane_width)
-    scale_o = 1.0 + batch.geometry.curvature(s_o) * d_all[idx]
-
-    inlane = occ_o[:, lanes].T  # (candidates, objects)
-    delta = reference.s_difference(s_o[None, :], s_c[:, None])
-    ahead = np.where(inlane & (delta >= 0.0), delta, np.inf)
-    behind = np.where(inlane & (delta < 0.0), -delta, np.inf)
-    rows = np.arange(len(s_c))
-    li = ahead.argmin(axis=1)
-    fi = behind.argmin(axis=1)
-    gap_lead = ahead[rows, li] * scale_c - 0.5 * (vtype.length + len_o[li])
-    gap_follow = behind[rows, fi] * scale_o[fi] - 0.5 * (vtype.length + len_o[fi])
-    speed = np.minimum(desired, max_speed_for_gap(
-        gap_lead, v_o[li], cfg.idm, vtype.comfort_accel, vtype.comfort_decel))
-    # The follower (a car or the ego) must not find the newcomer inside its desired
-    # gap: it then brakes by at most its a_max, never hard.
-    a_f = a_all[idx][fi]
-    b_f = (0.5 * tsab_all[idx][fi]) ** 2 / a_f
-    ok = (
-        (gap_lead >= cfg.spawn_min_gap)
-        & (gap_follow >= cfg.spawn_min_gap)
-        & (gap_follow >= desired_gap(v_o[fi], speed, cfg.idm, a_f, b_f))
-    )
-    if not ok.any():
-        return -1, 0.0
-    k = int(ok.argmax())
-    return k, float(speed[k])
-
-
-def place(batch: TrafficBatch, st: TrafficState, r: int, i: int,
-          placed: NDArray[np.bool_], rng: np.random.Generator, offsets: FloatArray) -> bool:
-    """Draw a type, lanes and desired speeds for car ``i``; place it if a spot fits."""
-    cfg = batch.config
-    type_index = int(rng.choice(len(VEHICLE_TYPES), p=batch.type_p))
-    lanes = rng.integers(0, batch.lanes, size=len(offsets))
-    u = rng.random(len(offsets))
-    lo_a, hi_a = cfg.speed_ahead_mph
-    lo_b, hi_b = cfg.speed_behind_mph
-    desired = MPH * np.where(offsets > 0, lo_a + u * (hi_a - lo_a), lo_b + u * (hi_b - lo_b))
-    cap = VEHICLE_TYPES[type_index].max_speed_mph
-    if cap < math.inf:  # a coach or a semi keeps to its own limit
-        desired = np.minimum(desired, MPH * cap)
-    k, speed = find_spot(batch, st, r, placed, type_index, offsets, lanes, desired)
-    if k < 0:
-        return False
-    s = float(batch.reference.wrap_s(st.ego_s[r] + offsets[k]))
-    new_car(batch, st, r, i, type_index, s, int(lanes[k]), speed, float(desired[k]), rng)
-    return True
-
-
-def recycle(batch: TrafficBatch, st: TrafficState, r: int, rel: FloatArray,
-            rng: np.random.Generator) -> bool:
-    """Respawn (a few of) row ``r``'s cars further than ``spawn_range`` from the ego.
-
-    ``rel`` is each car's s minus the ego's (folded). Returns whether any car moved.
-    """
-    step = int(st.step[r])
-    if step < st.respawn_blocked_until[r]:
-        return False
-    far = (np.abs(rel) > batch.range) & (st.respawn_wait[r] <= step)
-    if not np.count_nonzero(far):
-        return False
-    cfg = batch.config
-    idx = np.flatnonzero(far)
-    idx = idx[np.argsort(-np.abs(rel[idx]), kind="stable")][: cfg.respawn_per_decision]
-    moved = False
     (lo_a, hi_a), (lo_b, hi_b) = batch.respawn_bands
-    for i in idx:
-        placed = np.ones(st.cars, dtype=bool)
-        placed[i] = False
+    return np.array([lo_a, hi_a, lo_b, hi_b, *cfg.speed_ahead_mph, *cfg.speed_behind_mph,
+                     *cfg.wander_period, cfg.respawn_ahead_probability])
+
+
+@njit(cache=True)
+def recycle_row(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
+                constants: np.ndarray, kappa_grid: np.ndarray, kappa_table: np.ndarray,
+                type_cdf: np.ndarray, bands: np.ndarray, lanes: int, r: int,
+                candidates: np.ndarray, rng: np.ndarray) -> bool:
+    """The respawn rule for row ``r``'s candidates, in order, each drawing from the row's
+    generator (``rng``: its :func:`~sdc_gym.generator_kernel.generator_pointers`)
+    exactly as the rule's definition does with the generator's methods: the side's coin,
+    24 spots per side, the type, lanes and desired speeds of the candidate spots, and the
+    wander of a placed car. A car that finds no spot stays and retries later, and the row
+    pauses its respawns."""
+    step = ei[STEP_ROW, r]
+    moved = False
+    offsets = np.empty(2 * SPAWN_CANDIDATES)
+    spot_lanes = np.empty(2 * SPAWN_CANDIDATES, dtype=np.int64)
+    desired = np.empty(2 * SPAWN_CANDIDATES)
+    for i in candidates:
+        if i < 0:
+            break
         # The original's coin: ahead (slow) or behind (fast), whatever side it left.
-        ahead = rng.random() < cfg.respawn_ahead_probability
-        spots_ahead = rng.uniform(lo_a, hi_a, size=SPAWN_CANDIDATES)
-        spots_behind = -rng.uniform(lo_b, hi_b, size=SPAWN_CANDIDATES)
+        ahead = draw.random(rng) < bands[10]
         # The picked side's spots first, then the other side's (no room on the first).
-        offsets = np.concatenate((spots_ahead, spots_behind) if ahead
-                                 else (spots_behind, spots_ahead))
-        if place(batch, st, r, int(i), placed, rng, offsets):
-            st.spawn_count[r, i] += 1  # the slot keeps its id, as the original's cars
-            moved = True
-        else:  # no room (dense traffic): the car drives on; retry in a while
-            st.respawn_wait[r, i] = step + RESPAWN_RETRY_STEPS
-            st.respawn_blocked_until[r] = step + RESPAWN_PAUSE_STEPS
+        first, second = (0, SPAWN_CANDIDATES) if ahead else (SPAWN_CANDIDATES, 0)
+        for k in range(SPAWN_CANDIDATES):
+            offsets[first + k] = draw.uniform(rng, bands[0], bands[1])
+        for k in range(SPAWN_CANDIDATES):
+            offsets[second + k] = -draw.uniform(rng, bands[2], bands[3])
+        type_index = np.searchsorted(type_cdf, draw.random(rng), side="right")
+        for k in range(offsets.shape[0]):
+            spot_lanes[k] = draw.integers(rng, lanes)
+        span_ahead, span_behind = bands[5] - bands[4], bands[7] - bands[6]
+        for k in range(offsets.shape[0]):
+            u = draw.random(rng)
+            desired[k] = MPH * (bands[4] + u * span_ahead if offsets[k] > 0
+                                else bands[6] + u * span_behind)
+            # A coach or a semi keeps to its own limit (inf for the others: no change).
+            desired[k] = min(desired[k], MPH * TYPE_MAX_SPEED_MPH[type_index])
+        k, speed = find_spot(cf, ci, ef, constants, kappa_grid, kappa_table, r, i,
+                             type_index, offsets, spot_lanes, desired)
+        if k < 0:  # no room (dense traffic): the car drives on; retry in a while
+            ci[RESPAWN_WAIT, r, i] = step + RESPAWN_RETRY_STEPS
+            ei[RESPAWN_BLOCKED_ROW, r] = step + RESPAWN_PAUSE_STEPS
             break  # the others would not fit either, most likely
+        s = py_mod(ef[EGO_S, r] + offsets[k], constants[K_LOOP])
+        period = draw.uniform(rng, bands[8], bands[9])
+        phase = draw.uniform(rng, 0.0, 2.0 * np.pi)
+        write_car(cf, ci, ei[STEP_ROW], constants, r, i, type_index, s, spot_lanes[k], speed,
+                  desired[k], period, phase)
+        ci[SPAWN_COUNT, r, i] += 1  # the slot keeps its id, as the original's cars
+        moved = True
     return moved
+
+
+@njit(cache=True)
+def find_spot(cf: np.ndarray, ci: np.ndarray, ef: np.ndarray, constants: np.ndarray,
+              kappa_grid: np.ndarray, kappa_table: np.ndarray, r: int, skip: int,
+              type_index: int, offsets: np.ndarray, lanes: np.ndarray,
+              desired: np.ndarray) -> tuple[int, float]:
+    """The first candidate (ego s + offset, lane) satisfying the respawn rule for a car of
+    type ``type_index``, and its speed, among row ``r``'s cars but ``skip`` and the ego;
+    (-1, 0.0) when none fits."""
+    cars = cf.shape[2]
+    loop, lane_width = constants[K_LOOP], constants[K_LANE_WIDTH]
+    half = 0.5 * loop
+    length = _TYPE_LENGTH[type_index]
+    accel, decel = _TYPE_ACCEL[type_index], _TYPE_DECEL[type_index]
+    min_gap = constants[K_MIN_GAP]
+    ego_s, ego_d = ef[EGO_S, r], ef[EGO_D, r]
+    low = math.floor((ego_d - constants[K_EGO_HALF_WIDTH]) / lane_width)
+    high = math.floor((ego_d + constants[K_EGO_HALF_WIDTH]) / lane_width)
+    # The objects that count: the cars but `skip`, then the ego.
+    count = cars if skip < 0 else cars - 1
+    s_o = np.empty(count + 1)
+    d_o = np.empty(count + 1)
+    v_o = np.empty(count + 1)
+    length_o = np.empty(count + 1)
+    a_o = np.empty(count + 1)
+    tsab_o = np.empty(count + 1)
+    scale_o = np.empty(count + 1)
+    origin_o = np.empty(count + 1, dtype=np.int64)
+    target_o = np.empty(count + 1, dtype=np.int64)
+    j = 0
+    for c in range(cars):
+        if c == skip:
+            continue
+        s_o[j], d_o[j], v_o[j] = cf[S, r, c], cf[D, r, c], cf[SPEED, r, c]
+        length_o[j] = 2.0 * cf[HALF_LENGTH, r, c]
+        a_o[j], tsab_o[j] = cf[A_MAX, r, c], cf[TSAB, r, c]
+        origin_o[j], target_o[j] = ci[ORIGIN, r, c], ci[TARGET_LANE, r, c]
+        j += 1
+    s_o[j], d_o[j], v_o[j] = ego_s, ego_d, ef[EGO_SPEED, r]
+    length_o[j] = 2.0 * constants[K_EGO_HALF_LENGTH]
+    a_o[j], tsab_o[j] = constants[K_EGO_A_MAX], constants[K_EGO_TSAB]
+    for j in range(count + 1):
+        scale_o[j] = 1.0 + interp(s_o[j], kappa_grid, kappa_table) * d_o[j]
+    for k in range(offsets.shape[0]):
+        s_c = py_mod(ego_s + offsets[k], loop)
+        lane = lanes[k]
+        scale_c = 1.0 + interp(s_c, kappa_grid, kappa_table) * ((lane + 0.5) * lane_width)
+        # The nearest object ahead and behind in the lane (the first of equals; the first
+        # object when there is none).
+        ahead, behind = math.inf, math.inf
+        li, fi = 0, 0
+        for j in range(count + 1):
+            if j < count:
+                inlane = origin_o[j] == lane or target_o[j] == lane
+            else:
+                inlane = low <= lane <= high
+            delta = py_mod(s_o[j] - s_c + half, loop) - half
+            value = delta if inlane and delta >= 0.0 else math.inf
+            if value < ahead:
+                ahead, li = value, j
+            value = -delta if inlane and delta < 0.0 else math.inf
+            if value < behind:
+                behind, fi = value, j
+        gap_lead = ahead * scale_c - 0.5 * (length + length_o[li])
+        gap_follow = behind * scale_o[fi] - 0.5 * (length + length_o[fi])
+        speed = min(desired[k], _max_speed_for_gap(gap_lead, v_o[li], accel, decel,
+                                                   constants))
+        # The follower (a car or the ego) must not find the newcomer inside its desired
+        # gap: it then brakes by at most its a_max, never hard.
+        a_f = a_o[fi]
+        b_f = (0.5 * tsab_o[fi]) * (0.5 * tsab_o[fi]) / a_f
+        if (gap_lead >= min_gap and gap_follow >= min_gap
+                and gap_follow >= _desired_gap(v_o[fi], speed, a_f, b_f, constants)):
+            return k, speed
+    return -1, 0.0
+
+
+@njit(cache=True, inline="always")
+def _max_speed_for_gap(gap: float, leader_speed: float, a: float, b: float,
+                       constants: np.ndarray) -> float:
+    """:func:`~sdc_gym.traffic.idm.max_speed_for_gap` for one gap."""
+    c = 0.5 / math.sqrt(a * b)
+    finite = math.isfinite(gap)
+    lin = constants[K_IDM_T] - c * (leader_speed if finite else 0.0)
+    room = max(gap - constants[K_IDM_S0], 0.0)
+    v = (math.sqrt(lin * lin + 4.0 * c * room) - lin) / (2.0 * c)
+    return max(v, 0.0) if finite else math.inf
+
+
+@njit(cache=True, inline="always")
+def _desired_gap(v: float, leader_speed: float, a: float, b: float,
+                 constants: np.ndarray) -> float:
+    """:func:`~sdc_gym.traffic.idm.desired_gap` for one follower."""
+    closing = v * (v - leader_speed) / (2.0 * math.sqrt(a * b))
+    if constants[K_IDM_FLOOR] != 0.0:
+        return constants[K_IDM_S0] + max(v * constants[K_IDM_T] + closing, 0.0)
+    return constants[K_IDM_S0] + v * constants[K_IDM_T] + closing
 
 
 def _free_spot(batch: TrafficBatch, st: TrafficState, r: int, i: int, rel: FloatArray,
@@ -252,7 +398,7 @@ def reset_row(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Gene
     spread = min(0.75 * batch.range / cfg.density, spread_max)
     rel = np.zeros(st.cars)
     for i in range(st.cars):
-        type_index = int(rng.choice(len(VEHICLE_TYPES), p=batch.type_p))
+        type_index = choice(rng, batch.type_cdf)
         while (spot := _free_spot(batch, st, r, i, rel, type_index, spread, rng)) is None:
             if spread >= spread_max:
                 raise ValueError(

@@ -72,13 +72,16 @@ def start_lane_change(batch: TrafficBatch, st: TrafficState, row: int, car: int,
     st.pending[row, car], st.held[row, car] = -1, 0
 
 
-def after_decision(st: TrafficState, lc_start_before: IntArray) -> None:
-    """After a decision of the envs of ``st`` (``lc_start_before``: ``lc_start`` before
-    it): undo the lane changes the kernels started for slots that hold their lane (objects,
-    parked, ``hold_lane``, a scripted acceleration in force), and put each scripted
-    acceleration in force in place of the decided one."""
+def after_decision(st: TrafficState, lc_start_before: IntArray,
+                   rows: NDArray[np.bool_] | None = None) -> None:
+    """After a decision of the envs of ``st`` with ``rows`` (default all;
+    ``lc_start_before``: ``lc_start`` before it): undo the lane changes the kernels started
+    for slots that hold their lane (objects, parked, ``hold_lane``, a scripted acceleration
+    in force), and put each scripted acceleration in force in place of the decided one."""
     now = st.step[:, None]
     forced = now < st.forced_until
+    if rows is not None:
+        forced &= rows[:, None]
     held = (st.role != TRAFFIC) | (st.hold_lane != 0) | forced
     undo = held & (st.lc_start == now) & (lc_start_before != now)
     if np.count_nonzero(undo):

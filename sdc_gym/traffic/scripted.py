@@ -8,7 +8,7 @@ kernels alone, bit for bit as before:
   without them (the same draws in the same order), then parks the object slots;
 * :func:`reset_slots_row`: a row from one :class:`~sdc_gym.traffic.slots.SlotSpec` per
   column (scenarios, replays);
-* :func:`before_decision` / :func:`after_decision`: around each decision round, the
+* :func:`before_decision_round` / :func:`after_decision`: around each decision round, the
   envs' controllers (``before_decision(batch, state, row)``: a scenario's script, the road
   events) and the roles' overrides;
 * :func:`~sdc_gym.traffic.roles.place_objects`: the road objects where they are, in a
@@ -32,7 +32,7 @@ from sdc_gym.traffic.vehicle_types import KINDS
 TrafficBatch = Any  # sdc_gym.traffic.batch.TrafficBatch (typed by name: no import circle)
 IntArray = NDArray[np.int64]
 
-__all__ = ["SlotSpec", "TrafficController", "after_decision", "before_decision",
+__all__ = ["SlotSpec", "TrafficController", "after_decision", "before_decision_round",
            "place_objects", "reset_random_row", "reset_slots_row"]
 
 
@@ -86,16 +86,29 @@ def reset_slots_row(batch: TrafficBatch, st: TrafficState, env: int,
         write_slot(batch, st, env, i, spec, rng)
 
 
-def before_decision(batch: TrafficBatch, st: TrafficState, rows: IntArray) -> IntArray:
-    """The controllers of the envs ``rows`` (rows of ``st``, in order) at their decision
-    instant; returns ``lc_start`` as it is before the decision (for :func:`after_decision`)."""
-    for row, env in enumerate(rows.tolist()):
+def before_decision_round(batch: TrafficBatch, st: TrafficState, rows: NDArray[np.bool_],
+                          end: IntArray, step0: IntArray, ego_s: NDArray[np.float64],
+                          ego_d: NDArray[np.float64], ego_speed: NDArray[np.float64]
+                          ) -> IntArray:
+    """Before a decision round (the envs with ``rows``, at window frame ``end`` of an
+    advance from ``step0``, with the ego's ``(envs, frames)`` states): each deciding env's
+    step and latest ego state, as the decision kernel sets them, then its controller.
+    Returns ``lc_start`` as it is before the decision (for :func:`after_decision`)."""
+    for env in np.flatnonzero(rows).tolist():
         controller = batch.controllers[env]
-        if controller is not None:
-            controller.before_decision(batch, st, row)
+        if controller is None:
+            continue
+        st.step[env] = step0[env] + end[env]
+        before = int(end[env]) - 1
+        if before >= 0:
+            st.ego_s[env] = float(ego_s[env, before]) % batch.loop
+            st.ego_d[env] = ego_d[env, before]
+            st.ego_speed[env] = ego_speed[env, before]
+        controller.before_decision(batch, st, env)
     return st.lc_start.copy()
 
 
-def after_decision(st: TrafficState, lc_start: IntArray) -> None:
-    """The roles' overrides after a decision (:func:`sdc_gym.traffic.roles.after_decision`)."""
-    _after_decision(st, lc_start)
+def after_decision(st: TrafficState, lc_start: IntArray, rows: NDArray[np.bool_]) -> None:
+    """The roles' overrides after a decision round of the envs with ``rows``
+    (:func:`sdc_gym.traffic.roles.after_decision`)."""
+    _after_decision(st, lc_start, rows)

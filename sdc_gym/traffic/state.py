@@ -2,10 +2,11 @@
 
 :class:`TrafficState` holds every per-car quantity as an ``(envs, cars)`` array and every
 per-env one as an ``(envs,)`` array; nothing else of the traffic changes during an
-episode. The kernels (:mod:`sdc_gym.traffic.kinematics`, :mod:`sdc_gym.traffic.decisions`,
-:mod:`sdc_gym.traffic.placement`) are functions of such a state, so a subset of the envs
-(those at a decision instant) is worked on by taking its rows (:meth:`TrafficState.take`)
-and writing them back (:meth:`TrafficState.put`).
+episode. The arrays are views of four packed blocks (car floats, car ints, env ints, env
+floats: :attr:`TrafficState.blocks`), which is what the compiled kernels
+(:mod:`sdc_gym.traffic.kernels`) take: a handful of arguments per call, whatever the
+number of fields. The kernels work on the envs a mask selects; the placement
+(:mod:`sdc_gym.traffic.placement`) writes one env's row in place.
 """
 
 from __future__ import annotations
@@ -120,15 +121,23 @@ class TrafficState:
     def __init__(self, envs: int, cars: int, lane_change_duration: float = 0.0) -> None:
         self.envs = envs
         self.cars = cars
-        for name in self.CAR_FLOATS:
-            setattr(self, name, np.zeros((envs, cars)))
-        for name in self.CAR_INTS:
-            setattr(self, name, np.zeros((envs, cars), dtype=np.int64))
-        for name in self.ENV_INTS:
-            setattr(self, name, np.zeros(envs, dtype=np.int64))
-        for name in self.ENV_FLOATS:
-            setattr(self, name, np.zeros(envs))
+        self.car_floats = np.zeros((len(self.CAR_FLOATS), envs, cars))
+        self.car_ints = np.zeros((len(self.CAR_INTS), envs, cars), dtype=np.int64)
+        self.env_ints = np.zeros((len(self.ENV_INTS), envs), dtype=np.int64)
+        self.env_floats = np.zeros((len(self.ENV_FLOATS), envs))
+        for block, names in ((self.car_floats, self.CAR_FLOATS), (self.car_ints, self.CAR_INTS),
+                             (self.env_ints, self.ENV_INTS),
+                             (self.env_floats, self.ENV_FLOATS)):
+            for row, name in enumerate(names):
+                setattr(self, name, block[row])
         self.clear_rows(slice(None), lane_change_duration)
+
+    @property
+    def blocks(self) -> tuple[FloatArray, IntArray, IntArray, FloatArray]:
+        """The packed arrays the kernels take: car floats ``(fields, envs, cars)`` in the
+        order of :data:`CAR_FLOATS`, car ints (:data:`CAR_INTS`), env ints ``(fields,
+        envs)`` (:data:`ENV_INTS`) and env floats (:data:`ENV_FLOATS`)."""
+        return self.car_floats, self.car_ints, self.env_ints, self.env_floats
 
     def clear_rows(self, rows: slice | IntArray | int, lane_change_duration: float) -> None:
         """Start rows afresh (before a placement writes their cars)."""
@@ -139,17 +148,3 @@ class TrafficState:
         self.lc_end[rows] = IDLE
         self.pending[rows] = -1
         self.lc_duration[rows] = lane_change_duration
-
-    def take(self, rows: IntArray) -> TrafficState:
-        """A new state holding copies of ``rows``."""
-        sub = object.__new__(TrafficState)
-        sub.envs = len(rows)
-        sub.cars = self.cars
-        for name in self.FIELDS:
-            setattr(sub, name, getattr(self, name)[rows])
-        return sub
-
-    def put(self, rows: IntArray, sub: TrafficState) -> None:
-        """Write ``sub`` (taken with :meth:`take`) back into ``rows``."""
-        for name in self.FIELDS:
-            getattr(self, name)[rows] = getattr(sub, name)

@@ -5,23 +5,119 @@ point after (the original simulator's controller), so the spacing of the points 
 speed; a path that runs out stops the car dead where it stands. A path takes effect
 ``latency`` frames after it is sent; until then the car keeps consuming the old one.
 How a path is taken up and consumed is the original's rule
-(:mod:`sdc_gym.envs.perfect_controller`). All envs of a batch send
-their paths at the same frames (steps of ``frames_per_step``), so arrivals fall on the
-same frame offsets of a step for all of them; the motion between arrivals is one set of
-array expressions for every env.
+(:mod:`sdc_gym.vehicle.perfect_controller`). The motion of every env's car over a step is
+one compiled pass (:func:`drive_paths`); the heading is numpy's ``arctan2`` of the step
+to the next point over the whole batch (its SIMD version, as the env was defined with).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 from numpy.typing import NDArray
 
-from sdc_gym.envs.perfect_controller import adopted_start, frames_of_motion
+from sdc_gym.vehicle.perfect_controller import adopted_start, frames_of_motion
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
 PHYSICS_DT = 0.02  # s: the original simulator's frame, one path point per frame
+
+
+@njit(cache=True)
+def send_paths(queue: np.ndarray, queue_length: np.ndarray, queue_due: np.ndarray,
+               queue_head: np.ndarray, queue_count: np.ndarray, frame: np.ndarray,
+               paths: np.ndarray, lengths: np.ndarray, latency: int) -> None:
+    """Every env sends a path: it joins the env's queue, due ``latency`` frames on."""
+    depth = queue.shape[1]
+    for e in range(queue.shape[0]):
+        slot = (queue_head[e] + queue_count[e]) % depth
+        count = lengths[e]
+        for k in range(count):  # element-wise: no array assignment's error path to compile
+            queue[e, slot, k, 0], queue[e, slot, k, 1] = paths[e, k, 0], paths[e, k, 1]
+        queue_length[e, slot] = count
+        queue_due[e, slot] = frame[e] + latency
+        queue_count[e] += 1
+
+
+@njit(cache=True, inline="always")
+def _arrive(e: int, xy: np.ndarray, frame: np.ndarray, path: np.ndarray,
+            path_length: np.ndarray, path_start: np.ndarray, queue: np.ndarray,
+            queue_length: np.ndarray, queue_due: np.ndarray, queue_head: np.ndarray,
+            queue_count: np.ndarray) -> None:
+    """Adopt env ``e``'s paths due by now: drop the points before the one nearest the car
+    (and that one too if the car stands on it)."""
+    depth = queue.shape[1]
+    while queue_count[e] > 0 and queue_due[e, queue_head[e]] <= frame[e]:
+        slot = queue_head[e]
+        count = queue_length[e, slot]
+        for k in range(count):
+            path[e, k, 0], path[e, k, 1] = queue[e, slot, k, 0], queue[e, slot, k, 1]
+        path_length[e] = count
+        path_start[e] = adopted_start(path[e], count, xy[e, 0], xy[e, 1])
+        queue_head[e] = (slot + 1) % depth
+        queue_count[e] -= 1
+
+
+@njit(cache=True)
+def drive_paths(frames: int, xy: np.ndarray, frame: np.ndarray, path: np.ndarray,
+                path_length: np.ndarray, path_start: np.ndarray, queue: np.ndarray,
+                queue_length: np.ndarray, queue_due: np.ndarray, queue_head: np.ndarray,
+                queue_count: np.ndarray, track: np.ndarray, step: np.ndarray,
+                moving: np.ndarray, speed: np.ndarray) -> None:
+    """Move every car ``frames`` frames along its path(s): positions ``track`` ``(envs,
+    frames, 2)``; for the frames that move it, the step to the next point (whose angle
+    is the heading) in ``step`` and ``moving``; speeds (m/s)."""
+    for e in range(xy.shape[0]):
+        x0, y0 = xy[e, 0], xy[e, 1]
+        done = 0
+        while done < frames:
+            _arrive(e, xy, frame, path, path_length, path_start, queue, queue_length,
+                    queue_due, queue_head, queue_count)
+            # Move until the next arrival (splitting a stretch of one path in two moves
+            # the car exactly as one stretch would).
+            horizon = frames - done
+            if queue_count[e] > 0:
+                horizon = min(horizon, queue_due[e, queue_head[e]] - frame[e])
+            first = path_start[e]
+            moves, discard_last = frames_of_motion(path_length[e] - first, horizon)
+            for j in range(horizon):
+                f = done + j
+                if j < moves:
+                    here = first + j
+                    track[e, f, 0], track[e, f, 1] = path[e, here, 0], path[e, here, 1]
+                    step[e, f, 0] = path[e, here + 1, 0] - path[e, here, 0]
+                    step[e, f, 1] = path[e, here + 1, 1] - path[e, here, 1]
+                    moving[e, f] = True
+                    xy[e, 0], xy[e, 1] = track[e, f, 0], track[e, f, 1]
+                else:  # the path ran out: the car stands where it is
+                    track[e, f, 0], track[e, f, 1] = xy[e, 0], xy[e, 1]
+                    step[e, f, 0] = step[e, f, 1] = 0.0
+                    moving[e, f] = False
+            # One point left: a frame removes it, the car stands still.
+            path_start[e] = path_length[e] if discard_last else first + moves
+            done += horizon
+            frame[e] += horizon
+        # A path due now arrives before the observation (the original's lock-step: the
+        # reply is applied, then the next telemetry goes out).
+        _arrive(e, xy, frame, path, path_length, path_start, queue, queue_length,
+                queue_due, queue_head, queue_count)
+        for f in range(frames):
+            px, py = (x0, y0) if f == 0 else (track[e, f - 1, 0], track[e, f - 1, 1])
+            speed[e, f] = math.hypot(track[e, f, 0] - px, track[e, f, 1] - py) / PHYSICS_DT
+
+
+@njit(cache=True)
+def hold_headings(heading: np.ndarray, moving: np.ndarray, yaw: np.ndarray) -> None:
+    """A frame that does not move the car keeps the heading before it; ``yaw`` becomes
+    each car's heading after the last frame."""
+    for e in range(heading.shape[0]):
+        for f in range(heading.shape[1]):
+            if not moving[e, f]:
+                heading[e, f] = heading[e, f - 1] if f else yaw[e]
+        yaw[e] = heading[e, heading.shape[1] - 1]
 
 
 class PathFollower:
@@ -51,8 +147,6 @@ class PathFollower:
         self.queue_due = np.zeros((envs, depth), dtype=np.int64)
         self.queue_head = np.zeros(envs, dtype=np.int64)
         self.queue_count = np.zeros(envs, dtype=np.int64)
-        self._rows = np.arange(envs)
-        self._steps = np.arange(capacity)
 
     def reset_at(self, env: int, xy: FloatArray, yaw: float) -> None:
         """Env ``env``'s car at ``xy`` facing ``yaw``, without a path."""
@@ -64,76 +158,24 @@ class PathFollower:
 
     def send(self, paths: FloatArray, lengths: IntArray) -> None:
         """Every env sends a path (``(envs, capacity, 2)``, the first ``lengths`` points)."""
-        slot = (self.queue_head + self.queue_count) % self.queue.shape[1]
-        self.queue[self._rows, slot] = paths
-        self.queue_length[self._rows, slot] = lengths
-        self.queue_due[self._rows, slot] = self.frame + self.latency
-        self.queue_count += 1
+        send_paths(self.queue, self.queue_length, self.queue_due, self.queue_head,
+                   self.queue_count, self.frame, paths, lengths, self.latency)
 
     def remaining(self, env: int) -> FloatArray:
         """Env ``env``'s unconsumed path points."""
         return self.path[env, self.path_start[env]:self.path_length[env]]
 
-    def _arrive(self) -> None:
-        """Adopt the paths due by now: drop the points before the one nearest the car
-        (and that one too if the car stands on it)."""
-        while True:
-            head = self.queue_head
-            due = (self.queue_count > 0) & (self.queue_due[self._rows, head] <= self.frame)
-            rows = np.flatnonzero(due)
-            if not len(rows):
-                return
-            slot = head[rows]
-            path = self.queue[rows, slot]
-            length = self.queue_length[rows, slot]
-            self.path[rows] = path
-            self.path_length[rows] = length
-            self.path_start[rows] = adopted_start(path, length, self.xy[rows])
-            self.queue_head[rows] = (slot + 1) % self.queue.shape[1]
-            self.queue_count[rows] -= 1
-
     def drive(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Move every car one env step along its path(s): positions ``(envs, frames, 2)``,
         headings and speeds ``(envs, frames)`` after each frame."""
-        frames = self.frames_per_step
-        envs = self.envs
-        track = np.empty((envs, frames + 1, 2))  # row 0: where the cars start
-        track[:, 0] = self.xy
-        yaw = np.empty((envs, frames))
-        done = 0
-        while done < frames:
-            self._arrive()
-            # Every car moves until the next arrival of any (splitting a stretch of one
-            # path in two moves the car exactly as one stretch would).
-            horizon = frames - done
-            waiting = self.queue_count > 0
-            if np.count_nonzero(waiting):
-                due = self.queue_due[self._rows, self.queue_head] - self.frame
-                horizon = int(min(horizon, due[waiting].min()))
-            first = self.path_start
-            moves, discard_last = frames_of_motion(self.path_length - first, horizon)
-            j = np.arange(horizon)[None, :]
-            index = np.minimum(first[:, None] + j, self.capacity - 2)
-            here = self.path[self._rows[:, None], index]
-            ahead = self.path[self._rows[:, None], index + 1]
-            heading = np.arctan2(ahead[..., 1] - here[..., 1], ahead[..., 0] - here[..., 0])
-            moving = j < moves[:, None]
-            last = np.maximum(moves - 1, 0)
-            stopped_xy = np.where((moves > 0)[:, None], here[self._rows, last], self.xy)
-            stopped_yaw = np.where(moves > 0, heading[self._rows, last], self.yaw)
-            track[:, done + 1:done + 1 + horizon] = np.where(moving[..., None], here,
-                                                             stopped_xy[:, None, :])
-            yaw[:, done:done + horizon] = np.where(moving, heading, stopped_yaw[:, None])
-            # One point left: a frame removes it, the car stands still.
-            self.path_start = np.where(discard_last, self.path_length, first + moves)
-            self.xy = stopped_xy
-            self.yaw = stopped_yaw
-            done += horizon
-            self.frame = self.frame + horizon
-        # A path due now arrives before the observation (the original's lock-step: the
-        # reply is applied, then the next telemetry goes out).
-        self._arrive()
-        step = track[:, 1:] - track[:, :-1]
-        speed = np.hypot(step[..., 0], step[..., 1])
-        speed /= PHYSICS_DT
-        return track[:, 1:], yaw, speed
+        frames, envs = self.frames_per_step, self.envs
+        track = np.empty((envs, frames, 2))
+        step = np.empty((envs, frames, 2))
+        moving = np.empty((envs, frames), dtype=np.bool_)
+        speed = np.empty((envs, frames))
+        drive_paths(frames, self.xy, self.frame, self.path, self.path_length,
+                    self.path_start, self.queue, self.queue_length, self.queue_due,
+                    self.queue_head, self.queue_count, track, step, moving, speed)
+        heading = np.arctan2(step[..., 1], step[..., 0])
+        hold_headings(heading, moving, self.yaw)
+        return track, heading, speed

@@ -7,10 +7,10 @@ and changes speed toward ``target_speed`` at no more than ``acceleration``.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Protocol
 
+from sdc_gym.stack.highway import behavior_kernel as kernel
 from sdc_gym.stack.highway.world_model import WorldModel
 
 # The seed's speed-change rates, converted from metres per step per step (0.02 s steps).
@@ -36,9 +36,10 @@ def braking_percent(gap_m: float, gain_pct_per_m: float = BRAKE_CURVE_GAIN_PCT_P
     """p(d): the % of the lead car's speed to drive at, ``gap_m`` behind it, in [0, 100].
 
     The seed fitted this curve to a train-braking profile: the closer the lead, the larger
-    the share of its speed to give up, so the gap opens again before it closes."""
-    p = gain_pct_per_m / decay_per_m * (1.0 - math.exp(-decay_per_m * gap_m)) - offset_pct
-    return 0.0 if p < 0.0 else (100.0 if p > 100.0 else p)
+    the share of its speed to give up, so the gap opens again before it closes. (The
+    compiled rule of :mod:`sdc_gym.stack.highway.behavior_kernel`, shared with the
+    shield.)"""
+    return kernel.braking_percent(float(gap_m), gain_pct_per_m, decay_per_m, offset_pct)
 
 
 def safety_gap_m(behind_speed_mps: float, ego_speed_mps: float,
@@ -46,8 +47,8 @@ def safety_gap_m(behind_speed_mps: float, ego_speed_mps: float,
                  horizon_s: float = SAFETY_HORIZON_S) -> float:
     """The gap a car behind in a target lane needs: where it will be after ``horizon_s`` at
     constant speeds, plus ``min_gap_m`` (never less than ``min_gap_m``)."""
-    g = horizon_s * (behind_speed_mps - ego_speed_mps) + min_gap_m
-    return g if g > min_gap_m else min_gap_m
+    return kernel.safety_gap_m(float(behind_speed_mps), float(ego_speed_mps), min_gap_m,
+                               horizon_s)
 
 
 @dataclass(frozen=True)

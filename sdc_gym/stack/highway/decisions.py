@@ -33,8 +33,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
-from sdc_gym.stack.highway.behavior import NORMAL_ACCELERATION, BehaviorDecision
-from sdc_gym.stack.highway.shield import SafetyShield
+from sdc_gym.stack.highway import behavior_kernel as kernel
+from sdc_gym.stack.highway.behavior import MAX_BRAKING, NORMAL_ACCELERATION, BehaviorDecision
+from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters, shield_array, views_of
 from sdc_gym.stack.highway.world_model import WorldModel
 from sdc_gym.validation.actions import discrete_index, real_array
 
@@ -44,7 +45,7 @@ ACTION_NAMES = tuple(f"{lane}/{speed}" for lane in LANE_MOVES for speed in SPEED
 CRUISE_SPEED_MPS = 0.4455 / 0.02
 """22.275 m/s (49.83 mph): the seed's largest distance increment per 0.02 s, under the
 50 mph limit."""
-LANE_CHANGE_DONE_M = 0.5
+LANE_CHANGE_DONE_M = kernel.LANE_CHANGE_DONE_M
 """A lane change is complete within this of the target lane's centre (the seed's)."""
 
 
@@ -89,87 +90,102 @@ class DecisionExecutor:
         cruise_speed_mps: the ``cruise`` target (and the top of the continuous range).
 
     Counters (per episode): ``lane_changes`` started, ``refused`` lane moves the shield
-    turned down, ``aborted`` changes it sent back.
+    turned down, ``aborted`` changes it sent back. The rules are compiled
+    (:func:`~sdc_gym.stack.highway.behavior_kernel.execute`); the executors of a batch
+    of envs share their state arrays (:class:`ExecutorBatch`), of which this one is a
+    row (``view``) or the only row.
     """
 
     def __init__(self, shield: SafetyShield | None = None, *, slow_step_mps: float = 2.0,
                  cruise_speed_mps: float = CRUISE_SPEED_MPS) -> None:
-        if not slow_step_mps > 0.0 or not cruise_speed_mps > 0.0:
-            raise ValueError("slow_step_mps and cruise_speed_mps must be > 0")
-        self.shield = shield
-        self.slow_step_mps = slow_step_mps
-        self.cruise_speed_mps = cruise_speed_mps
-        self.reset()
+        self._attach(ExecutorBatch(shield, 1, slow_step_mps=slow_step_mps,
+                                   cruise_speed_mps=cruise_speed_mps), 0)
+
+    @classmethod
+    def view(cls, batch: ExecutorBatch, env: int) -> DecisionExecutor:
+        """Env ``env``'s executor of ``batch``."""
+        made = object.__new__(cls)
+        made._attach(batch, env)
+        return made
+
+    def _attach(self, batch: ExecutorBatch, env: int) -> None:
+        self.batch = batch
+        self.env = env
+        self.shield = batch.shield
+        self.slow_step_mps = batch.slow_step_mps
+        self.cruise_speed_mps = batch.cruise_speed_mps
 
     def reset(self) -> None:
-        self.target_lane = -1  # set from the first world model
-        self.origin_lane = -1
-        self.changing = False
-        self.last_change_time = 0.0
-        self.lane_changes = 0
-        self.refused = 0
-        self.aborted = 0
+        self.batch.reset_at(self.env)
+
+    target_lane = property(lambda self: int(self.batch.ints[self.env, kernel.TARGET]))
+    origin_lane = property(lambda self: int(self.batch.ints[self.env, kernel.ORIGIN]))
+    changing = property(lambda self: bool(self.batch.ints[self.env, kernel.CHANGING]))
+    lane_changes = property(lambda self: int(self.batch.ints[self.env, kernel.LANE_CHANGES]))
+    refused = property(lambda self: int(self.batch.ints[self.env, kernel.REFUSED]))
+    aborted = property(lambda self: int(self.batch.ints[self.env, kernel.ABORTED]))
+    last_change_time = property(lambda self: float(self.batch.last_change[self.env]))
 
     def time_since_lane_change(self, now: float) -> float:
         return now - self.last_change_time
 
     def allowed_moves(self, world: WorldModel) -> tuple[bool, bool]:
         """Whether a ``left`` and a ``right`` move would start a change now."""
-        if self.changing:
-            return False, False
-        ego = world.ego_lane
-        if self.shield is None:
-            return ego > 0, ego < world.lane_count - 1
-        return (self.shield.lane_change_allowed(world, ego - 1),
-                self.shield.lane_change_allowed(world, ego + 1))
-
-    def _update_lane_state(self, world: WorldModel) -> None:
-        if self.target_lane < 0:
-            self.target_lane = world.ego_lane
-        if self.changing and abs(world.ego_d - world.lane_center(self.target_lane)) \
-                <= LANE_CHANGE_DONE_M:
-            self.changing = False
-        if (self.changing and self.shield is not None
-                and self.shield.must_abort(world, self.origin_lane, self.target_lane)):
-            self.target_lane, self.origin_lane = self.origin_lane, self.target_lane
-            self.aborted += 1
+        return kernel.allowed_moves(self.shield is not None, self.batch.shield_array,
+                                    views_of(world), world.ego_lane, world.ego_speed,
+                                    world.road_radius, self.changing)
 
     def execute(self, world: WorldModel, decision: HighwayDecision) -> BehaviorDecision:
         """The motion layer's instruction for ``decision`` in ``world``."""
-        self._update_lane_state(world)
-        v = world.ego_speed
-        if decision.speed_move == "cruise":
-            goal = self.cruise_speed_mps
-        elif decision.speed_move == "hold":
-            goal = v
-        elif decision.speed_move == "slow":
-            goal = max(v - self.slow_step_mps, 0.0)
-        elif decision.speed_move == "target" and decision.target_speed is not None:
-            goal = decision.target_speed
-        else:
-            raise ValueError(f"unknown speed move {decision.speed_move!r}; valid: "
-                             f"{[*SPEED_MOVES, 'target']}")
-        goal = min(goal, self.cruise_speed_mps)
-        accel, replan = NORMAL_ACCELERATION, False
-        limit = self.shield.speed_limit(world, self.target_lane) if self.shield else None
-        if limit is not None and limit.speed < goal:
-            goal, accel, replan = limit.speed, limit.acceleration, limit.hard
+        lane_move, speed_move, target_speed = decision_codes(decision)
+        lane, speed, acceleration, replan = kernel.execute(
+            self.shield is not None, self.batch.shield_array, self.batch.constants,
+            views_of(world), world.ego_lane, world.ego_d, world.ego_speed, world.lane_width,
+            world.road_radius, world.time, lane_move, speed_move, target_speed,
+            self.batch.ints, self.batch.last_change, self.env)
+        return BehaviorDecision(target_lane=lane, target_speed=speed, acceleration=acceleration,
+                                replan=replan, mode="changing" if self.changing else "lane")
 
-        if decision.lane_move not in (-1, 0, 1):
-            raise ValueError(f"lane_move must be -1, 0 or 1, got {decision.lane_move!r}")
-        if decision.lane_move and not self.changing:
-            new = world.ego_lane + decision.lane_move
-            ok = 0 <= new < world.lane_count
-            if ok and self.shield is not None:
-                ok = not replan and self.shield.lane_change_allowed(world, new)
-            if ok:
-                self.origin_lane, self.target_lane = self.target_lane, new
-                self.changing = True
-                self.last_change_time = world.time
-                self.lane_changes += 1
-            else:
-                self.refused += 1
-        return BehaviorDecision(target_lane=self.target_lane, target_speed=max(goal, 0.0),
-                                acceleration=accel, replan=replan,
-                                mode="changing" if self.changing else "lane")
 
+class ExecutorBatch:
+    """The decision executors of ``envs`` envs: their lane-change state and counters as
+    arrays (``ints`` ``(envs, 6)``: target lane, origin lane, changing, lane changes,
+    refused, aborted; ``last_change`` ``(envs,)`` s), the shield and constants shared."""
+
+    def __init__(self, shield: SafetyShield | None, envs: int, *, slow_step_mps: float = 2.0,
+                 cruise_speed_mps: float = CRUISE_SPEED_MPS) -> None:
+        if not slow_step_mps > 0.0 or not cruise_speed_mps > 0.0:
+            raise ValueError("slow_step_mps and cruise_speed_mps must be > 0")
+        self.shield = shield
+        self.slow_step_mps = float(slow_step_mps)
+        self.cruise_speed_mps = float(cruise_speed_mps)
+        self.shield_array = (shield.array if shield is not None
+                             else shield_array(ShieldParameters()))
+        self.constants = np.array([self.slow_step_mps, self.cruise_speed_mps,
+                                   NORMAL_ACCELERATION, MAX_BRAKING])
+        self.ints = np.zeros((envs, 6), dtype=np.int64)
+        self.last_change = np.zeros(envs)
+        for env in range(envs):
+            self.reset_at(env)
+
+    def reset_at(self, env: int) -> None:
+        """Env ``env``'s executor afresh (the target lane is set from its first world)."""
+        self.ints[env] = 0
+        self.ints[env, kernel.TARGET] = self.ints[env, kernel.ORIGIN] = -1
+        self.last_change[env] = 0.0
+
+
+def decision_codes(decision: HighwayDecision) -> tuple[int, int, float]:
+    """A decision as the kernel takes it: lane move, speed move code, target speed."""
+    if decision.lane_move not in (-1, 0, 1):
+        raise ValueError(f"lane_move must be -1, 0 or 1, got {decision.lane_move!r}")
+    code = _SPEED_CODES.get(decision.speed_move)
+    if code is None or (code == kernel.TARGET_SPEED and decision.target_speed is None):
+        raise ValueError(f"unknown speed move {decision.speed_move!r}; valid: "
+                         f"{[*SPEED_MOVES, 'target']}")
+    target = decision.target_speed if code == kernel.TARGET_SPEED else 0.0
+    return int(decision.lane_move), code, float(target)  # type: ignore[arg-type]
+
+
+_SPEED_CODES = {"cruise": kernel.CRUISE, "hold": kernel.HOLD, "slow": kernel.SLOW,
+                "target": kernel.TARGET_SPEED}

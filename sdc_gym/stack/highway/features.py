@@ -31,13 +31,13 @@ let a policy see what the shield would refuse.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from gymnasium import spaces
 from numpy.typing import NDArray
 
+from sdc_gym.stack.highway import behavior_kernel as kernel
 from sdc_gym.stack.highway.decisions import CRUISE_SPEED_MPS, DecisionExecutor
+from sdc_gym.stack.highway.shield import views_of
 from sdc_gym.stack.highway.world_model import WorldModel
 
 SINCE_CHANGE_SCALE_S = 10.0
@@ -72,6 +72,10 @@ class BehaviorFeatures:
                 low[per_lane + 4 * lane + column] = -REL_SPEED_LIMIT
                 high[per_lane + 4 * lane + column] = REL_SPEED_LIMIT
         self.space = spaces.Box(low, high, dtype=np.float32)
+        # The kernel's constants (sdc_gym.stack.highway.behavior_kernel.encode).
+        self.scales = np.array([CRUISE_SPEED_MPS, sensing_range_m, SPEED_RATIO_MAX,
+                                OFFSET_LIMIT, REL_SPEED_LIMIT, SINCE_CHANGE_SCALE_S,
+                                RADIUS_SCALE_M])
 
     def names(self) -> list[str]:
         n = range(self.lane_count)
@@ -86,39 +90,10 @@ class BehaviorFeatures:
         if world.lane_count != self.lane_count:
             raise ValueError(f"world has {world.lane_count} lanes, features expect "
                              f"{self.lane_count}")
-        v = world.ego_speed
-        n = self.lane_count
-        target = executor.target_lane if executor.target_lane >= 0 else world.ego_lane
-        values = [0.0] * self.size
-        values[0] = min(v / CRUISE_SPEED_MPS, SPEED_RATIO_MAX)
-        values[1 + world.ego_lane] = 1.0
-        values[1 + n + target] = 1.0
-        offset = (world.ego_d - world.lane_center(target)) / world.lane_width
-        values[1 + 2 * n] = min(max(offset, -OFFSET_LIMIT), OFFSET_LIMIT)
-        values[2 + 2 * n] = float(executor.changing)
-        values[3 + 2 * n] = min(executor.time_since_lane_change(world.time)
-                                / SINCE_CHANGE_SCALE_S, 1.0)
-        radius = world.road_radius
-        values[4 + 2 * n] = 0.0 if math.isinf(radius) else min(RADIUS_SCALE_M / radius, 1.0)
-        left, right = executor.allowed_moves(world)
-        values[5 + 2 * n], values[6 + 2 * n] = float(left), float(right)
-        rng = self.sensing_range_m
-        base = 7 + 2 * n
-        for lane, view in enumerate(world.lanes):
-            i = base + 4 * lane
-            if view.has_ahead:
-                values[i] = min(view.ahead_gap / rng, 1.0)
-                values[i + 1] = _relative(view.ahead_speed, v)
-            else:
-                values[i] = 1.0
-            if view.has_behind:
-                values[i + 2] = min(view.behind_gap / rng, 1.0)
-                values[i + 3] = _relative(view.behind_speed, v)
-            else:
-                values[i + 2] = 1.0
-        return np.asarray(values, dtype=np.float32)
-
-
-def _relative(speed: float, ego_speed: float) -> float:
-    rel = (speed - ego_speed) / CRUISE_SPEED_MPS
-    return min(max(rel, -REL_SPEED_LIMIT), REL_SPEED_LIMIT)
+        out = np.zeros(self.size, dtype=np.float32)
+        batch = executor.batch
+        kernel.encode(executor.shield is not None, batch.shield_array, views_of(world),
+                      world.ego_lane, world.ego_d, world.ego_speed, world.lane_width,
+                      world.road_radius, world.time, batch.ints, batch.last_change,
+                      executor.env, self.scales, out)
+        return out

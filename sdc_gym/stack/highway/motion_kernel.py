@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 # Columns of a queue row: one row per planned state.
 X, Y, S, D, HEADING, INCREMENT = range(6)
 
@@ -28,7 +30,7 @@ def line_frame(coef: np.ndarray, knot_step: float, inverse_step: float, segments
                ) -> tuple[float, float, float, float, float]:
     """Point, right unit normal and curvature of the reference line at ``s``
     (:meth:`~sdc_gym.geometry.reference_line.ReferenceLine.line_frames` for one s)."""
-    u = (s % length) * param_scale
+    u = py_mod(s, length) * param_scale
     i = int(u * inverse_step)
     if i > segments - 1:
         i = segments - 1
@@ -140,7 +142,8 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
             if stop[e] - start[e] > keep_count:
                 stop[e] = start[e] + keep_count
                 if keep_count > 0:
-                    end_row[e] = buffer[e, stop[e] - 1]
+                    for column in range(buffer.shape[2]):
+                        end_row[e, column] = buffer[e, stop[e] - 1, column]
                     has_end[e] = True
                 else:
                     has_end[e] = False
@@ -157,7 +160,9 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
         end_d = end_row[e, D] if has_end[e] else last_row[e, D]
         flags[e, 0] = abs(end_d - floats[e, 4]) > params[9]
         count = min(path_length, stop[e] - start[e])
-        out[e, :count] = buffer[e, start[e]:start[e] + count, :2]
+        for k in range(count):
+            out[e, k, 0] = buffer[e, start[e] + k, 0]
+            out[e, k, 1] = buffer[e, start[e] + k, 1]
         out_length[e] = count
 
 
@@ -187,7 +192,12 @@ def _extend(params: np.ndarray, coef: np.ndarray, line: np.ndarray, buffer: np.n
     if stop[e] + count > capacity:
         if size + count > capacity:
             raise ValueError("motion queue buffer too small")
-        buffer[e, :size] = buffer[e, start[e]:stop[e]].copy()
+        # Element by element, front to back (the rows only move towards the start):
+        # numba's array assignment costs seconds of compilation for its error message.
+        first = start[e]
+        for row in range(size):
+            for column in range(buffer.shape[2]):
+                buffer[e, row, column] = buffer[e, first + row, column]
         start[e], stop[e] = 0, size
     write = stop[e]
     increments = np.empty(batch_points)
@@ -276,15 +286,16 @@ def _extend(params: np.ndarray, coef: np.ndarray, line: np.ndarray, buffer: np.n
             s = s_pred[j] + (oy * nx - ox * ny) / (1.0 + bend * d)
             buffer[e, write, 0] = x
             buffer[e, write, 1] = y
-            buffer[e, write, 2] = s % length
+            buffer[e, write, 2] = py_mod(s, length)
             buffer[e, write, 3] = d
             buffer[e, write, 4] = heading
             buffer[e, write, 5] = step
             write += 1
         if travelled > 1e-6:
             floats[e, 0] = min(max((s - s_start) / travelled, 0.5), 2.0)
-        s %= length
+        s = py_mod(s, length)
     stop[e] = write
-    end_row[e] = buffer[e, write - 1]
+    for column in range(buffer.shape[2]):
+        end_row[e, column] = buffer[e, write - 1, column]
     has_end[e] = True
     return replay_from

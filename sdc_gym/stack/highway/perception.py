@@ -18,23 +18,21 @@ Layer 1 of the seed's planner. Every planning cycle it
    drift close to the ego into the ego lane's car ahead (the seed's Conservative style),
    picks the preferred lane and the circumradius of the ego lane ahead.
 
-Cost: with a dozen cars a numpy call (about 1 us whatever its size) costs more than the
-arithmetic of a car in Python, so the untracked cycle runs per car on Python floats; numpy
-only turns the rows into lists and projects the velocities (a full complex product, which
-numpy fuses and Python cannot round alike). Every number is the one the array expressions
-give (real-by-complex products, sums, ``%``, floor: numpy rounds them as Python does).
-Road geometry (point, normal, curvature) comes from a table sampled every 0.25 m along the
+Cost: the per-car steps are compiled kernels over a batch of envs
+(:mod:`sdc_gym.stack.highway.perception_kernel`, :func:`sense_batch`); numpy projects the
+velocities (a full complex product, which numpy fuses and a per-element product cannot
+round alike). Every number is the one the per-car arithmetic on floats gives. Road
+geometry (point, normal, curvature) comes from a table sampled every 0.25 m along the
 exact reference line and interpolated linearly (position error below 0.1 mm), and the
 circumradius from a per-lane table sampled every metre, because one call of the exact
-spline (about 14 us) costs a quarter of the budget of a cycle. The output dataclasses are
-filled through their instance dict (see ``_fast_constructor``). Measured on 12 cars: about
-30 us per cycle untracked (was 50 with one array expression per step), about 0.4 ms with
-tracking (filterpy, per car).
+spline (about 14 us) costs more than a cycle. The world model's dataclasses are filled
+through their instance dict (see ``_fast_constructor``); the batched behavior env reads
+the arrays (:class:`SensedBatch`) and builds none. Tracking (filterpy) runs per car in
+Python.
 """
 
 from __future__ import annotations
 
-import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, fields
@@ -49,16 +47,18 @@ from sdc_gym.stack.highway.perception_kernel import (
     BOUNDARY,
     FAULTY,
     SOUND,
+    ego_frenet,
     measure_batch,
+    road_radius,
     select_batch,
+    summarize_batch,
 )
-from sdc_gym.stack.highway.world_model import NO_CAR, LaneView, TrackedCar, WorldModel
+from sdc_gym.stack.highway.world_model import LaneView, TrackedCar, WorldModel
 
 FloatArray = NDArray[np.float64]
 
 _GEOMETRY_STEP = 0.25  # m between samples of the road geometry table
 _RADIUS_STEP = 1.0  # m between samples of the circumradius table
-_MIN_CURVATURE = 1e-9  # 1/m: a circumcircle flatter than this counts as a straight (inf)
 
 # The world model's classes are plain frozen dataclasses: their __init__ sets each field
 # with object.__setattr__, which for 12 cars, 3 lane views and the model costs about a
@@ -88,9 +88,6 @@ def _fast_constructor(cls: type) -> Callable[..., Any]:
 _new_car = _fast_constructor(TrackedCar)
 _new_lane_view = _fast_constructor(LaneView)
 _new_world = _fast_constructor(WorldModel)
-_TABLES: dict[int, Any] = {}
-# The lane index of a car whose d is NaN (numpy's cast of NaN to int64 on x86).
-_NAN_LANE = -(2**63)
 
 
 @dataclass(frozen=True)
@@ -183,28 +180,21 @@ class Perception:
         # interpolates it per car in Python floats, which gives the same numbers as the
         # array expression in _lookup (a real times a complex is the two real products,
         # then a sum).
-        self._geometry_xy_rows: list[tuple[float, ...]] = [
+        self._geometry_xy_rows = np.ascontiguousarray(np.array([
             (point.real, point.imag, normal.real, normal.imag, bend.real,
              point_step.real, point_step.imag, normal_step.real, normal_step.imag,
              bend_step.real)
             for point, normal, bend, point_step, normal_step, bend_step
-            in self._geometry.T.tolist()]
+            in self._geometry.T.tolist()]))
 
         # Circumradius table: the reciprocal (curvature of the circumcircle), per lane.
         m = max(math.ceil(self._length / _RADIUS_STEP), 16)
         grid = np.arange(m + 1) * (self._length / m)
         self._radius_scale = m / self._length
-        self._circle_curvature = [
-            self._circumcurvature(grid, float(road.lane_center(lane))).tolist()
-            for lane in range(self._lanes)
-        ]
+        self._circle_curvature = np.ascontiguousarray(np.stack([
+            self._circumcurvature(grid, float(road.lane_center(lane)))
+            for lane in range(self._lanes)]))
 
-        # Lane search: a car's key is its lane (floor(d / width)), plus _behind when it is
-        # behind the ego; row k of the search holds lane k ahead, row lanes + k lane k
-        # behind. _behind > lanes + 1 keeps off-road keys (-1, lanes) out of every row.
-        self._behind = 2 * self._lanes + 2
-        self._key_rows = {key: row for row, key in enumerate(
-            [*range(self._lanes), *(self._behind + lane for lane in range(self._lanes))])}
         self._empty_views = tuple(LaneView(lane) for lane in range(self._lanes))
 
         # Kalman filter constants (state s, d, s rate, d rate; all four measured).
@@ -213,6 +203,7 @@ class Perception:
         self._measurement_cov = np.diag([position_var, position_var, velocity_var,
                                          velocity_var])
         self._transition_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._cycle_buffers: dict[tuple[int, int], Any] = {}
         self.reset()
 
     # ------------------------------------------------------------------ public API
@@ -243,148 +234,10 @@ class Perception:
         ``inf`` where the three points are collinear. Interpolated (linearly in 1 / radius)
         from a 1 m table of the exact values, points from ``reference.to_xy``: within 0.2 %
         of the exact radius where it matters (below 5 km)."""
-        table = self._circle_curvature[lane]
-        u = (s % self._length) * self._radius_scale
-        i = min(int(u), len(table) - 2)
-        low = table[i]
-        curvature = low + (u - i) * (table[i + 1] - low)
-        return 1.0 / curvature if curvature > _MIN_CURVATURE else math.inf
+        return road_radius(self._circle_curvature, self._radius_scale, self._length,
+                           float(s), int(lane))
 
     # ------------------------------------------------------------------ helpers
-    def _measure(self, observation: dict[str, Any]) -> tuple[list[Any], ...]:
-        """Steps 1 to 3 for the sensed rows: ids, s, d, speed, d rate, reference curvature
-        (the last only with tracking on), as Python lists.
-
-        Per car in Python floats (with 12 cars, cheaper than a dozen numpy calls) and
-        bit-identical to the array version: the geometry lookup and the fault test use
-        only real-by-complex products and sums, which numpy rounds alike (and which are
-        computed here on the x and y parts: the same products and sums); the velocity
-        projection (a full complex product, which numpy fuses) stays one numpy call.
-        """
-        p = self.params
-        fusion = observation["sensor_fusion"]
-        if not (type(fusion) is np.ndarray and fusion.dtype.kind == "f"):
-            fusion = np.asarray(fusion, np.float64)
-        rows = fusion.tolist()  # id, x, y, vx, vy, s, d
-        mask = observation.get("sensor_fusion_mask")
-        if mask is not None:
-            rows = list(itertools.compress(rows, np.asarray(mask).tolist()))
-        length, scale, table = self._length, self._geometry_scale, self._geometry_xy_rows
-        tracking = p.tracking
-        tolerance = p.fault_tolerance
-        # The fault test: Python's |z| against the tolerance, except within rounding of the
-        # boundary, where numpy's own modulus decides (as the array version did). A squared
-        # miss clearly inside the tolerance skips it (no |z|: the usual, sound car).
-        below, above = tolerance * (1.0 - 1e-9), tolerance * (1.0 + 1e-9)
-        sound_sq = (tolerance * (1.0 - 1e-6)) ** 2
-        ids: list[int] = []
-        s_out: list[float] = []
-        d_out: list[float] = []
-        velocity: list[complex] = []
-        normals: list[complex] = []
-        curvature: list[float] = []
-        faulty: list[int] = []
-        for index, (car_id, x, y, vx, vy, s, d) in enumerate(rows):
-            s %= length
-            u = s * scale
-            i = int(u)  # s < length: at most n, the table's last row
-            px, py, nx, ny, bend, px_step, py_step, nx_step, ny_step, bend_step = table[i]
-            t = u - i
-            nx += t * nx_step
-            ny += t * ny_step
-            # (s, d) as a point, minus the sensed (x, y).
-            miss_x = px + t * px_step + d * nx - x
-            miss_y = py + t * py_step + d * ny - y
-            if miss_x * miss_x + miss_y * miss_y > sound_sq or (s == 0.0 and d == 0.0):
-                miss = complex(miss_x, miss_y)
-                if (abs(miss) > above or (s == 0.0 and d == 0.0) or (
-                        not abs(miss) <= below and np.abs(np.array([miss]))[0] > tolerance)):
-                    faulty.append(index)
-            ids.append(int(car_id))
-            s_out.append(s)
-            d_out.append(d)
-            velocity.append(complex(vx, vy))
-            normals.append(complex(nx, ny))
-            if tracking:
-                curvature.append(bend + t * bend_step)
-        if faulty:
-            xy = np.array([rows[index][1:3] for index in faulty], dtype=np.float64)
-            s_fixed, d_fixed = self.road.reference.to_frenet(xy)
-            for index, s, d in zip(faulty, np.mod(s_fixed, length).tolist(), d_fixed.tolist(),
-                                   strict=True):
-                u = s * scale
-                i = int(u)
-                _, _, nx, ny, bend, _, _, nx_step, ny_step, bend_step = table[i]
-                t = u - i
-                s_out[index] = s
-                d_out[index] = d
-                normals[index] = complex(nx + t * nx_step, ny + t * ny_step)
-                if tracking:
-                    curvature[index] = bend + t * bend_step
-        # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
-        projected = np.array(velocity, np.complex128) * np.array(normals, np.complex128).conj()
-        return (ids, s_out, d_out, projected.imag.tolist(), projected.real.tolist(),
-                curvature)
-
-    def _select(self, ids: list[int], s: list[float], d: list[float], speed: list[float],
-                d_rate: list[float], ego_s: float, ego_d: float,
-                ego_lane: int) -> tuple[tuple[LaneView, ...], tuple[TrackedCar, ...]]:
-        """Step 5 without the lane preference: the lane views and the perceived cars.
-
-        The nearest car of each search row is the first of the smallest distances (the
-        order of the rows given), as numpy's argmin over the rows used to pick it."""
-        p = self.params
-        length, half, lanes = self._length, self._half, self._lanes
-        inverse_width, key_rows, behind = self._inverse_width, self._key_rows, self._behind
-        shift = half - ego_s
-        best = [math.inf] * (2 * lanes)
-        nearest = [0] * (2 * lanes)
-        ghosting = p.ghosting
-        lateral, ghost_ahead, ghost_behind = p.ghost_lateral, p.ghost_ahead, -p.ghost_behind
-        floor = math.floor
-        gaps, lane_index = [], []
-        for k, (car_s, car_d) in enumerate(zip(s, d, strict=True)):
-            gap = (car_s + shift) % length - half
-            distance = abs(gap)
-            try:
-                lane = floor(car_d * inverse_width)
-            except (ValueError, OverflowError):  # d not finite
-                lane = car_d * inverse_width
-            row = key_rows.get(lane + behind if gap < 0 else lane)
-            if row is not None and distance < best[row]:
-                best[row] = distance
-                nearest[row] = k
-            # Ghosting: an adjacent car drifting close to the ego also counts as the ego
-            # lane's car ahead (it is in no other row of the ego lane).
-            if (ghosting and abs(car_d - ego_d) < lateral and lane != ego_lane
-                    and abs(lane - ego_lane) == 1 and 0 <= lane < lanes
-                    and ghost_behind <= gap <= ghost_ahead and distance < best[ego_lane]):
-                best[ego_lane] = distance
-                nearest[ego_lane] = k
-            if not -1 <= lane <= lanes:
-                lane = -1 if lane < 0 else lanes if lane > lanes else _NAN_LANE
-            gaps.append(gap)
-            lane_index.append(lane)
-        cars = tuple(map(_new_car, ids, s, d, speed, d_rate, lane_index, gaps))
-
-        reach = p.sensing_range
-        views = []
-        for k in range(lanes):
-            ahead_gap, behind_gap = best[k], best[k + lanes]
-            if ahead_gap <= reach:
-                ahead = nearest[k]
-                ahead_speed, ahead_id = speed[ahead], ids[ahead]
-            else:
-                ahead_gap, ahead_speed, ahead_id = math.inf, 0.0, NO_CAR
-            if behind_gap <= reach:
-                behind_car = nearest[k + lanes]
-                behind_speed, behind_id = speed[behind_car], ids[behind_car]
-            else:
-                behind_gap, behind_speed, behind_id = math.inf, 0.0, NO_CAR
-            views.append(_new_lane_view(k, ahead_gap, ahead_speed, ahead_id,
-                                        behind_gap, behind_speed, behind_id))
-        return tuple(views), cars
-
     def _lookup(self, s: FloatArray) -> NDArray[np.complex128]:
         """Point x + iy, right normal and curvature (3, n) of the road at wrapped ``s``."""
         u = s * self._geometry_scale
@@ -405,15 +258,19 @@ class Perception:
         sides = np.hypot(*ab.T) * np.hypot(*bc.T) * np.hypot(*ca.T)
         return 2.0 * cross / sides
 
-    def _preferred_lane(self, views: tuple[LaneView, ...], ego_lane: int) -> int:
-        """The lane whose car ahead is furthest; ties: the middle lane, then the ego's."""
-        gaps = [view.ahead_gap for view in views]
-        best = max(gaps)
-        if gaps[self._middle] == best:
-            return self._middle
-        if gaps[ego_lane] == best:
-            return ego_lane
-        return gaps.index(best)
+    def _buffers(self, envs: int, cars: int) -> tuple[SensedBatch, tuple[NDArray, ...]]:
+        """The arrays a cycle of ``envs`` envs of ``cars`` rows fills (kept: a cycle's
+        results are read before the next cycle)."""
+        key = (envs, cars)
+        buffers = self._cycle_buffers.get(key)
+        if buffers is None:
+            shape = (envs, cars)
+            scratch = (np.zeros(shape), np.zeros(shape), np.zeros(shape),
+                       np.zeros(shape, dtype=np.int64), *(np.zeros((envs, cars, 2))
+                                                          for _ in range(3)))
+            buffers = self._cycle_buffers[key] = (SensedBatch(envs, cars, self._lanes),
+                                                  scratch)
+        return buffers
 
     def _transition(self, dt: float) -> tuple[FloatArray, FloatArray]:
         """State transition F and process noise Q of the constant-velocity model."""
@@ -488,35 +345,97 @@ class Perception:
                 track_speed, states[:, 3])
 
 
-def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
-                 present: NDArray[np.bool_], times: NDArray[np.float64], *,
-                 with_cars: bool = True) -> list[WorldModel]:
+class SensedBatch:
+    """One perception cycle of a batch of envs, as arrays (what :func:`sense_batch`
+    returns): per env the ego's ``ego_s`` (wrapped), ``ego_d``, ``ego_speed``,
+    ``ego_lane``, the lane ``views`` ``(envs, lanes, 6)`` (ahead gap, speed, id, behind
+    gap, speed, id), the ``preferred`` lane and the ``road_radius``; the perceived cars
+    per env in ``cars(env)``."""
+
+    def __init__(self, envs: int, cars: int, lanes: int) -> None:
+        shape = (envs, cars)
+        self.ego_s, self.ego_d, self.ego_speed = np.zeros(envs), np.zeros(envs), np.zeros(envs)
+        self.ego_lane = np.zeros(envs, dtype=np.int64)
+        self.views = np.zeros((envs, lanes, 6))
+        self.preferred = np.zeros(envs, dtype=np.int64)
+        self.road_radius = np.zeros(envs)
+        self.count = np.zeros(envs, dtype=np.int64)
+        self.ids = np.zeros(shape, dtype=np.int64)
+        self.s, self.d, self.speed, self.d_rate = (np.zeros(shape) for _ in range(4))
+        self.car_lane = np.zeros(shape, dtype=np.int64)
+        self.car_gap = np.zeros(shape)
+        self.tracked: dict[int, tuple[NDArray, ...]] = {}
+
+    ARRAYS = ("ego_s", "ego_d", "ego_speed", "ego_lane", "views", "preferred", "road_radius",
+              "count", "ids", "s", "d", "speed", "d_rate", "car_lane", "car_gap")
+
+    def put(self, rows: NDArray[np.intp], part: SensedBatch) -> None:
+        """Write ``part`` (a cycle of the envs ``rows``) into these envs' entries."""
+        for name in self.ARRAYS:
+            getattr(self, name)[rows] = getattr(part, name)
+        for env in rows.tolist():
+            self.tracked.pop(env, None)
+        for index, columns in part.tracked.items():
+            self.tracked[int(rows[index])] = columns
+
+    def cars(self, env: int) -> tuple[TrackedCar, ...]:
+        """Env ``env``'s perceived cars (its live tracks, with tracking on)."""
+        columns = self.tracked.get(env)
+        if columns is None:
+            n = int(self.count[env])
+            columns = (self.ids[env, :n], self.s[env, :n], self.d[env, :n],
+                       self.speed[env, :n], self.d_rate[env, :n], self.car_lane[env, :n],
+                       self.car_gap[env, :n])
+        return tuple(map(_new_car, *(column.tolist() for column in columns)))
+
+
+def sense_batch(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
+                present: NDArray[np.bool_], times: NDArray[np.float64]) -> SensedBatch:
     """One perception cycle of a batch of envs (one :class:`Perception`, with its tracks,
     per env; they share the road and parameters): ``ego`` ``(envs, 6)`` and ``fusion``
     ``(envs, cars, 7)`` as observed, ``present`` the rows sensed. The per-car work runs in
     the compiled kernels of :mod:`sdc_gym.stack.highway.perception_kernel` for every env
-    at once. ``with_cars=False`` leaves ``WorldModel.cars`` empty (layers that read only the
-    lane views, the ego and the road: the executor, the shield, the features)."""
+    at once."""
     first = perceptions[0]
     p = first.params
     envs, cars = fusion.shape[:2]
     lanes, length = first._lanes, first._length
-    table = _TABLES.get(id(first._geometry))
-    if table is None or table[0] is not first._geometry:
-        table = (first._geometry, np.array(first._geometry_xy_rows))
-        _TABLES[id(first._geometry)] = table
-    rows = table[1]
-    fusion64 = np.ascontiguousarray(fusion, dtype=np.float64)
-    shape = (envs, cars)
-    s, d, nx, ny, bend = (np.zeros(shape) for _ in range(5))
-    fault = np.zeros(shape, dtype=np.int64)
-    count = np.zeros(envs, dtype=np.int64)
-    xy, velocity, miss = (np.zeros((envs, cars, 2)) for _ in range(3))
-    ids = np.zeros(shape, dtype=np.int64)
-    measure_batch(fusion64, np.ascontiguousarray(present), rows, length,
-                  first._geometry_scale, p.fault_tolerance, s, d, nx, ny, bend, fault, count,
-                  xy, velocity, miss, ids)
-    scale = first._geometry_scale
+    out, scratch = first._buffers(envs, cars)
+    s, d = out.s, out.d
+    nx, ny, bend, fault, xy, velocity, miss = scratch
+    # Read-only either way (the sensors' shared all-present mask is): one signature.
+    present = np.ascontiguousarray(present).view()
+    present.flags.writeable = False
+    measure_batch(np.ascontiguousarray(fusion, dtype=np.float64), present,
+                  first._geometry_xy_rows, length, first._geometry_scale, p.fault_tolerance,
+                  s, d, nx, ny, bend, fault, out.count, xy, velocity, miss, out.ids)
+    if (fault != SOUND).any():
+        _repair_faults(first, fault, out.count, miss, xy, s, d, nx, ny, bend)
+    # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
+    projected = (velocity[..., 0] + 1j * velocity[..., 1]) * (nx + 1j * ny).conj()
+    out.speed[:], out.d_rate[:] = projected.imag, projected.real
+    ego_frenet(np.ascontiguousarray(ego, dtype=np.float64), length, first._inverse_width, lanes,
+               out.ego_s, out.ego_d, out.ego_speed, out.ego_lane)
+    select_batch(s, d, out.speed, out.ids, out.count, out.ego_s, out.ego_d, out.ego_lane,
+                 length, lanes, first._inverse_width, p.ghosting, p.ghost_lateral,
+                 p.ghost_ahead, p.ghost_behind, p.sensing_range, out.views, out.car_lane,
+                 out.car_gap)
+    out.tracked.clear()
+    if p.tracking:
+        for env, perception in enumerate(perceptions):
+            _tracked_views(perception, out, env, float(times[env]), bend)
+    summarize_batch(out.views, out.ego_s, out.ego_lane, first._middle,
+                    first._circle_curvature, first._radius_scale, length, out.preferred,
+                    out.road_radius)
+    return out
+
+
+def _repair_faults(first: Perception, fault: NDArray, count: NDArray, miss: NDArray,
+                   xy: NDArray, s: NDArray, d: NDArray, nx: NDArray, ny: NDArray,
+                   bend: NDArray) -> None:
+    """Rows whose (s, d) are faulty get them from (x, y) (the exact projection)."""
+    p = first.params
+    length, scale = first._length, first._geometry_scale
     for env in np.flatnonzero((fault != SOUND).any(axis=1)).tolist():
         verdict = fault[env, :count[env]]
         bad = [k for k in range(int(count[env])) if verdict[k] == FAULTY or (
@@ -534,45 +453,49 @@ def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
             s[env, k], d[env, k] = s_k, d_k
             nx[env, k], ny[env, k] = nxi + t * nx_step, nyi + t * ny_step
             bend[env, k] = bi + t * b_step
-    # (vx + i vy) conj(n) with n = ty - i tx: real = normal speed, imag = tangential.
-    projected = (velocity[..., 0] + 1j * velocity[..., 1]) * (nx + 1j * ny).conj()
-    speed, d_rate = projected.imag, projected.real
-    ego64 = ego.astype(np.float64)
-    ego_s = ego64[:, 2] % length
-    ego_d = ego64[:, 3]
-    ego_lane = np.minimum(np.maximum(np.floor(ego_d * first._inverse_width), 0),
-                          lanes - 1).astype(np.int64)
-    views = np.zeros((envs, lanes, 6))
-    car_lane = np.zeros(shape, dtype=np.int64)
-    car_gap = np.zeros(shape)
-    select_batch(s, d, speed, ids, count, ego_s, ego_d, ego_lane, length, lanes,
-                 first._inverse_width, p.ghosting, p.ghost_lateral, p.ghost_ahead,
-                 p.ghost_behind, p.sensing_range, views, car_lane, car_gap)
-    worlds = []
-    for env, perception in enumerate(perceptions):
-        n = int(count[env])
-        e_s, e_d, e_speed = float(ego_s[env]), float(ego_d[env]), float(ego64[env, 5])
-        lane = int(ego_lane[env])
-        if perception.params.tracking:
-            tracked = perception._track(float(times[env]), ids[env, :n], s[env, :n],
-                                        d[env, :n], speed[env, :n], d_rate[env, :n],
-                                        bend[env, :n])
-            columns = [column.tolist() for column in tracked]
-            if columns[1]:
-                lane_views, cars_seen = perception._select(*columns, e_s, e_d, lane)
-            else:
-                lane_views, cars_seen = perception._empty_views, ()
-        else:
-            cars_seen = () if not with_cars else tuple(map(
-                _new_car, ids[env, :n].tolist(), s[env, :n].tolist(),
-                                  d[env, :n].tolist(), speed[env, :n].tolist(),
-                                  d_rate[env, :n].tolist(), car_lane[env, :n].tolist(),
-                                  car_gap[env, :n].tolist()))
-            lane_views = tuple(
-                _new_lane_view(k, v[0], v[1], int(v[2]), v[3], v[4], int(v[5]))
-                for k, v in enumerate(views[env].tolist())) if n else perception._empty_views
-        worlds.append(_new_world(float(times[env]), e_s, e_d, e_speed, lane, lanes,
-                                 perception._lane_width, lane_views, cars_seen,
-                                 perception._preferred_lane(lane_views, lane),
-                                 perception.road_radius(e_s, lane)))
-    return worlds
+
+
+def _tracked_views(perception: Perception, out: SensedBatch, env: int, time: float,
+                   bend: NDArray) -> None:
+    """With tracking: env ``env``'s lane views from its live tracks (the same lane
+    search, :func:`~sdc_gym.stack.highway.perception_kernel.select_batch`)."""
+    p = perception.params
+    n = int(out.count[env])
+    ids, s, d, speed, d_rate = perception._track(time, out.ids[env, :n], out.s[env, :n],
+                                                 out.d[env, :n], out.speed[env, :n],
+                                                 out.d_rate[env, :n], bend[env, :n])
+    m = len(ids)
+    lane, gap = np.zeros((1, m), dtype=np.int64), np.zeros((1, m))
+    views = np.zeros((1, perception._lanes, 6))
+    select_batch(s[None], d[None], speed[None], ids[None], np.array([m]), out.ego_s[env:env + 1],
+                 out.ego_d[env:env + 1], out.ego_lane[env:env + 1], perception._length,
+                 perception._lanes, perception._inverse_width, p.ghosting, p.ghost_lateral,
+                 p.ghost_ahead, p.ghost_behind, p.sensing_range, views, lane, gap)
+    out.views[env] = views[0]
+    out.tracked[env] = (ids, s, d, speed, d_rate, lane[0], gap[0])
+
+
+def perceive_all(perceptions: list[Perception], ego: NDArray, fusion: NDArray,
+                 present: NDArray[np.bool_], times: NDArray[np.float64], *,
+                 with_cars: bool = True) -> list[WorldModel]:
+    """:func:`sense_batch` as world models (``with_cars=False`` leaves
+    ``WorldModel.cars`` empty: layers that read only the lane views, the ego and the road
+    need no more)."""
+    sensed = sense_batch(perceptions, ego, fusion, present, times)
+    return [world_model_of(sensed, env, float(times[env]), perception, with_cars)
+            for env, perception in enumerate(perceptions)]
+
+
+def world_model_of(sensed: SensedBatch, env: int, time: float, perception: Perception,
+                   with_cars: bool = False) -> WorldModel:
+    """Env ``env``'s :class:`WorldModel` of a perception cycle."""
+    if env in sensed.tracked or sensed.count[env]:
+        lane_views = tuple(_new_lane_view(k, v[0], v[1], int(v[2]), v[3], v[4], int(v[5]))
+                           for k, v in enumerate(sensed.views[env].tolist()))
+    else:
+        lane_views = perception._empty_views
+    return _new_world(time, float(sensed.ego_s[env]), float(sensed.ego_d[env]),
+                      float(sensed.ego_speed[env]), int(sensed.ego_lane[env]),
+                      perception._lanes, perception._lane_width, lane_views,
+                      sensed.cars(env) if with_cars else (), int(sensed.preferred[env]),
+                      float(sensed.road_radius[env]))

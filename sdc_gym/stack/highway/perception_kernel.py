@@ -5,7 +5,8 @@ rows' Frenet coordinates and road normals from the geometry table, and the fault
 and :func:`select_batch` step 5 (every lane's nearest car ahead and behind, ghosting, the
 preferred lane, the circumradius ahead), for every env at once. Both are numba-compiled
 from the per-car arithmetic on floats the layer was written with, so every value is the
-one the per-car loop gives. The velocity projection between them stays a numpy complex
+one the per-car loop gives; :func:`summarize_batch` adds each env's preferred lane and
+the road's circumradius ahead. The velocity projection between them stays a numpy complex
 product (numpy fuses it; a per-element product rounds differently), as before.
 """
 
@@ -16,7 +17,10 @@ import math
 import numpy as np
 from numba import njit
 
+from sdc_gym.geometry.exact_math import py_mod
+
 SOUND, FAULTY, BOUNDARY = 0, 1, 2
+MIN_CURVATURE = 1e-9  # 1/m: a circumcircle flatter than this counts as a straight (inf)
 
 
 @njit(cache=True)
@@ -37,7 +41,7 @@ def measure_batch(fusion: np.ndarray, present: np.ndarray, table: np.ndarray,
             if not present[e, k]:
                 continue
             x, y = fusion[e, k, 1], fusion[e, k, 2]
-            s = fusion[e, k, 5] % length
+            s = py_mod(fusion[e, k, 5], length)
             d = fusion[e, k, 6]
             u = s * scale
             i = int(u)  # s < length: at most n, the table's last row
@@ -89,7 +93,7 @@ def select_batch(s: np.ndarray, d: np.ndarray, speed: np.ndarray, ids: np.ndarra
         nearest[:] = 0
         own = ego_lane[e]
         for k in range(count[e]):
-            gap = (s[e, k] + shift) % length - half
+            gap = py_mod(s[e, k] + shift, length) - half
             distance = abs(gap)
             value = d[e, k] * inverse_width
             finite = math.isfinite(value)
@@ -130,3 +134,55 @@ def select_batch(s: np.ndarray, d: np.ndarray, speed: np.ndarray, ids: np.ndarra
                 views[e, lane, 5] = ids[e, nearest[lane + lanes]]
             else:
                 views[e, lane, 3], views[e, lane, 4], views[e, lane, 5] = np.inf, 0.0, -1.0
+
+
+@njit(cache=True)
+def road_radius(table: np.ndarray, scale: float, length: float, s: float, lane: int) -> float:
+    """Circumradius of ``lane``'s centre line at ``s`` from its table of 1 / radius
+    (``table[lane]``, ``scale`` samples per metre; linear interpolation; ``inf`` where the
+    circle is flatter than 1e-9 / m)."""
+    row = table[lane]
+    u = py_mod(s, length) * scale
+    i = min(int(u), row.shape[0] - 2)
+    low = row[i]
+    curvature = low + (u - i) * (row[i + 1] - low)
+    return 1.0 / curvature if curvature > MIN_CURVATURE else math.inf
+
+
+@njit(cache=True)
+def summarize_batch(views: np.ndarray, ego_s: np.ndarray, ego_lane: np.ndarray, middle: int,
+                    table: np.ndarray, scale: float, length: float, preferred: np.ndarray,
+                    radius: np.ndarray) -> None:
+    """Per env the preferred lane (the one whose car ahead is furthest; ties: the middle
+    lane, then the ego's, then the first) and the road's circumradius ahead in the ego
+    lane."""
+    for e in range(views.shape[0]):
+        lanes = views.shape[1]
+        best = views[e, 0, 0]
+        for lane in range(1, lanes):
+            if views[e, lane, 0] > best:
+                best = views[e, lane, 0]
+        own = ego_lane[e]
+        if views[e, middle, 0] == best:
+            preferred[e] = middle
+        elif views[e, own, 0] == best:
+            preferred[e] = own
+        else:
+            for lane in range(lanes):
+                if views[e, lane, 0] == best:
+                    preferred[e] = lane
+                    break
+        radius[e] = road_radius(table, scale, length, ego_s[e], own)
+
+
+@njit(cache=True)
+def ego_frenet(ego: np.ndarray, length: float, inverse_width: float, lanes: int,
+               ego_s: np.ndarray, ego_d: np.ndarray, ego_speed: np.ndarray,
+               ego_lane: np.ndarray) -> None:
+    """Per env the ego's wrapped s, d, speed and lane (``floor(d / width)`` clipped to
+    the road) from its observed ``(x, y, s, d, yaw, speed)``."""
+    for e in range(ego.shape[0]):
+        ego_s[e] = py_mod(ego[e, 2], length)
+        ego_d[e] = ego[e, 3]
+        ego_speed[e] = ego[e, 5]
+        ego_lane[e] = int(min(max(math.floor(ego[e, 3] * inverse_width), 0), lanes - 1))

@@ -29,9 +29,12 @@ Rules (gaps centre to centre, as the world model gives them):
 
 from __future__ import annotations
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
+import numpy as np
+from numpy.typing import NDArray
+
+from sdc_gym.stack.highway import behavior_kernel as kernel
 from sdc_gym.stack.highway.behavior import (
     BRAKE_CURVE_DECAY_PER_M,
     BRAKE_CURVE_GAIN_PCT_PER_M,
@@ -40,8 +43,6 @@ from sdc_gym.stack.highway.behavior import (
     NORMAL_ACCELERATION,
     SAFETY_GAP_MIN_M,
     SAFETY_HORIZON_S,
-    braking_percent,
-    safety_gap_m,
 )
 from sdc_gym.stack.highway.world_model import LaneView, WorldModel
 
@@ -88,75 +89,59 @@ class SpeedLimit:
 
 
 class SafetyShield:
-    """The rules of the module docstring, as pure functions of a world model."""
+    """The rules of the module docstring, as pure functions of a world model (compiled:
+    :mod:`sdc_gym.stack.highway.behavior_kernel`, the implementation the batched
+    behavior env runs too)."""
 
     def __init__(self, params: ShieldParameters | None = None) -> None:
         self.params = params or ShieldParameters()
+        self.array = shield_array(self.params)
 
     def braking_fraction(self, gap_m: float) -> float:
         """p(gap) / 100: the fraction of the lead's speed to drive at, ``gap_m`` behind it."""
-        p = self.params
-        return braking_percent(gap_m, p.brake_curve_gain_pct_per_m, p.brake_curve_decay_per_m,
-                               p.brake_curve_offset_pct) * 0.01
+        return kernel.braking_fraction(self.array, float(gap_m))
 
     def lead(self, world: WorldModel, target_lane: int) -> tuple[float, float]:
         """Gap and speed of the nearest car ahead in the lanes from the ego's to the target."""
-        lo, hi = sorted((world.ego_lane, target_lane))
-        gap, speed = math.inf, 0.0
-        for view in world.lanes[lo:hi + 1]:
-            if view.ahead_gap < gap:
-                gap, speed = view.ahead_gap, view.ahead_speed
-        return gap, speed
+        return kernel.lead(views_of(world), world.ego_lane, int(target_lane))
 
     def speed_limit(self, world: WorldModel, target_lane: int) -> SpeedLimit:
         """The following cap behind the lead (``inf`` speed when there is none)."""
-        p = self.params
-        gap, u = self.lead(world, target_lane)
-        if gap == math.inf:
-            return SpeedLimit(math.inf)
-        if gap >= p.brake_range_m:
-            edge = self.braking_fraction(p.brake_range_m) * u
-            return SpeedLimit(edge + p.approach_gain_per_s * (gap - p.brake_range_m))
-        fraction = self.braking_fraction(gap)
-        if fraction < p.hard_braking_fraction:
-            return SpeedLimit(fraction * u, MAX_BRAKING, hard=True)
-        return SpeedLimit(fraction * u)
+        speed, acceleration, hard = kernel.speed_limit(
+            self.array, views_of(world), world.ego_lane, int(target_lane), MAX_BRAKING,
+            NORMAL_ACCELERATION)
+        return SpeedLimit(speed, acceleration, hard)
 
     def safe_behind(self, view: LaneView, ego_speed: float) -> bool:
         """The lane's car behind is beyond the seed's safety gap."""
-        p = self.params
-        return view.behind_gap > safety_gap_m(view.behind_speed, ego_speed,
-                                              p.safety_gap_min_m, p.safety_horizon_s)
+        return kernel.safe_behind(self.array, view.behind_gap, view.behind_speed,
+                                  float(ego_speed))
 
     def safe_ahead(self, view: LaneView, ego_speed: float) -> bool:
         """The lane's car ahead leaves room for the change at the current speeds."""
-        p = self.params
-        need = p.min_ahead_m + p.safety_horizon_s * max(ego_speed - view.ahead_speed, 0.0)
-        return view.ahead_gap > need
+        return kernel.safe_ahead(self.array, view.ahead_gap, view.ahead_speed, float(ego_speed))
 
     def lane_change_allowed(self, world: WorldModel, target_lane: int) -> bool:
         """Whether a change from the ego lane to the adjacent ``target_lane`` may start now."""
-        p = self.params
-        ego = world.ego_lane
-        if abs(target_lane - ego) != 1 or not 0 <= target_lane < world.lane_count:
-            return False
-        if world.road_radius <= p.min_change_radius_m:
-            return False
-        view = world.lanes[target_lane]
-        v = world.ego_speed
-        if not (self.safe_behind(view, v) and self.safe_ahead(view, v)):
-            return False
-        far = 2 * target_lane - ego
-        if 0 <= far < world.lane_count:
-            beyond = world.lanes[far]
-            if min(beyond.ahead_gap, beyond.behind_gap) < p.far_lane_watch_m:
-                return False
-        return True
+        return kernel.lane_change_allowed(self.array, views_of(world), world.ego_lane,
+                                          world.ego_speed, world.road_radius,
+                                          int(target_lane))
 
     def must_abort(self, world: WorldModel, origin_lane: int, target_lane: int) -> bool:
         """A lane change under way should go back: see "Abort" in the module docstring."""
-        p = self.params
-        if abs(world.ego_d - world.lane_center(origin_lane)) > p.abort_window_m:
-            return False
-        view = world.lanes[target_lane]
-        return view.ahead_gap < p.abort_gap_m or not self.safe_behind(view, world.ego_speed)
+        return kernel.must_abort(self.array, views_of(world), world.ego_d, world.ego_speed,
+                                 world.lane_width, int(origin_lane), int(target_lane))
+
+
+def shield_array(params: ShieldParameters) -> NDArray[np.float64]:
+    """The parameters as the kernels take them (in field order)."""
+    return np.array([getattr(params, field.name) for field in fields(params)],
+                    dtype=np.float64)
+
+
+def views_of(world: WorldModel) -> NDArray[np.float64]:
+    """A world model's lane views as the kernels take them: ``(lanes, 6)`` rows ahead gap,
+    ahead speed, ahead id, behind gap, behind speed, behind id."""
+    return np.array([(view.ahead_gap, view.ahead_speed, view.ahead_id, view.behind_gap,
+                      view.behind_speed, view.behind_id) for view in world.lanes],
+                    dtype=np.float64).reshape(-1, 6)

@@ -22,26 +22,33 @@ unconsumed point; :func:`adopted_start` gives that index for new paths,
 from __future__ import annotations
 
 import numpy as np
-from numpy.typing import NDArray
+from numba import njit
 
 
-def adopted_start(paths: NDArray[np.float64], lengths: NDArray[np.int64],
-                  car_xy: NDArray[np.float64]) -> NDArray[np.int64]:
-    """Per path (``(paths, points, 2)``, the first ``lengths`` points; ``car_xy``
-    ``(paths, 2)``), the index of the first point the car will use (0 for an empty one)."""
-    offset = paths - car_xy[:, None, :]  # squared distances: np.sum(offset**2, axis=-1),
-    offset *= offset                     # in cheaper calls (the same two-term sums)
-    distance_sq = offset[..., 0] + offset[..., 1]
-    distance_sq[np.arange(paths.shape[1])[None, :] >= lengths[:, None]] = np.inf
-    nearest = distance_sq.argmin(axis=1)
-    past = (nearest > 0) | (distance_sq[:, 0] == 0.0)  # past the last point: empty
-    return np.where(lengths > 0, nearest + past, 0)
+@njit(cache=True)
+def adopted_start(path: np.ndarray, length: int, car_x: float, car_y: float) -> int:
+    """Index of the first point of ``path`` (its first ``length`` points) the car will
+    use (0 for an empty path; ``length`` when none is left)."""
+    if length <= 0:
+        return 0
+    nearest, best, first = 0, np.inf, 0.0
+    for k in range(length):
+        dx = path[k, 0] - car_x
+        dy = path[k, 1] - car_y
+        distance_sq = dx * dx + dy * dy
+        if k == 0:
+            first = distance_sq
+        if distance_sq < best:
+            nearest, best = k, distance_sq
+    if nearest > 0 or first == 0.0:
+        return nearest + 1  # past the last point: the path is empty
+    return 0
 
 
-def frames_of_motion(remaining: NDArray[np.int64], frames: int
-                     ) -> tuple[NDArray[np.int64], NDArray[np.bool_]]:
-    """Of ``frames`` frames with ``remaining`` unconsumed points (per path): how many move
-    the car, and whether the path's last point is discarded (one point left, a frame
-    without motion)."""
-    moves = np.minimum(frames, np.maximum(remaining - 1, 0))
-    return moves, (remaining >= 1) & (moves < frames)
+@njit(cache=True)
+def frames_of_motion(remaining: int, frames: int) -> tuple[int, bool]:
+    """Of ``frames`` frames with ``remaining`` unconsumed points: how many move the car,
+    and whether the path's last point is discarded (one point left, a frame without
+    motion)."""
+    moves = min(frames, max(remaining - 1, 0))
+    return moves, remaining >= 1 and moves < frames
