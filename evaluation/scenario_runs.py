@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from evaluation.episodes import EpisodeSpec
-from evaluation.files import _csv, atomic_write_text
+from evaluation.files import atomic_write_text, csv_text
 from evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
 from evaluation.tables import TableData
 from sdc_gym.config import ConfigError
@@ -166,7 +166,7 @@ def write_scenario_run(folder: Path, rows: list[dict[str, Any]],
     """``scenarios.csv`` and ``scenarios.json`` into ``folder`` (atomically)."""
     folder.mkdir(parents=True, exist_ok=True)
     csv_path, json_path = folder / SCENARIOS_CSV, folder / SCENARIOS_JSON
-    atomic_write_text(csv_path, _csv(rows, COLUMNS))
+    atomic_write_text(csv_path, csv_text(rows, COLUMNS))
     keep = [{key: value for key, value in episode.items()
              if key not in ("trace", "incident_reports")} for episode in episodes]
     atomic_write_text(json_path, json.dumps({"run": run, "rows": rows, "episodes": keep},

@@ -113,12 +113,12 @@ def _car_entry(slot: dict[str, Any], index: int) -> dict[str, Any]:
                              "s": slot["s"]}
     if slot["role"] == OBJECT:  # a stalled car
         entry["stalled"] = True
-        entry["state"] = {"wander": slot["wander"], "d": slot["d"]}
+        entry["state"] = {"wander": slot["wander"]}
         return entry
     entry.update(speed=slot["speed"], desired_speed=max(slot["desired"], 1e-3),
                  lane_changes=not slot["hold_lane"],
                  recycle=slot["respawn_in"] < NO_RECYCLE_FROM_STEPS)
-    state = {key: slot[key] for key in ("wander", "d", "lane_change", "acc",
+    state = {key: slot[key] for key in ("wander", "lane_change", "acc",
                                         "pending", "held", "brake_in", "cut_in_for",
                                         "respawn_in", "spawn_count", "forced_acc",
                                         "forced_until_steps")}

@@ -56,7 +56,7 @@ TOP_KEYS: Final = ("name", "description", "map", "duration", "ego", "traffic", "
 EGO_KEYS: Final = ("s", "lane", "d", "speed", "x", "y", "yaw", "path", "in_flight")
 CAR_KEYS: Final = ("name", "kind", "lane", "gap", "s", "speed", "desired_speed",
                    "lane_changes", "stalled", "recycle", "state")
-STATE_KEYS: Final = ("wander", "d", "lane_change", "acc", "pending", "held",
+STATE_KEYS: Final = ("wander", "lane_change", "acc", "pending", "held",
                      "brake_in", "cut_in_for", "respawn_in", "spawn_count", "hold_lane",
                      "forced_acc", "forced_until_steps")
 ACTION_KEYS: Final = {
