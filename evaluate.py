@@ -11,6 +11,8 @@
         --planner-map ../data/highway_map.csv   # a planner for the original simulator
     python evaluate.py --seeds $(seq 0 999) --ray auto   # Ray tasks on a running cluster
     python evaluate.py compare results/A results/B   # two runs side by side
+    python evaluate.py --scenario sdc_gym/scenarios/library   # pass/fail per scenario
+    python evaluate.py --scenario results/latest/incidents.json  # replay every incident
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
 each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
@@ -47,6 +49,10 @@ down at its end (docs/ray.md). An episode that raises, or whose worker dies, is 
 with its seed and reason (printed, and in ``summary.json``'s ``run.failures`` with its
 traceback); the other episodes still run and are written, and the exit status is 1.
 
+``--scenario PATH`` (a scenario file, a folder of them, or an incidents.json to replay)
+runs every agent on each scenario and prints pass or fail with the reason, into
+scenarios.csv and scenarios.json (:mod:`evaluation.scenario_runs`, ``docs/scenarios.md``).
+
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
 ``terminate_on_collision`` off, so incidents are counted and the car drives on, and reports
 the distance without incident (longest stretch and at the end, miles) and the wall time,
@@ -79,6 +85,13 @@ from evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
 from evaluation.plots import Limits
 from evaluation.profiles import stop_line_distances
 from evaluation.runner import run_episodes
+from evaluation.scenario_runs import (
+    SCENARIOS_CSV,
+    SCENARIOS_JSON,
+    run_scenarios,
+    verdict_table,
+    write_scenario_run,
+)
 from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.ray import LOCAL
@@ -141,6 +154,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         "0: no reports)")
     parser.add_argument("--stop-at-incident", action="store_true",
                         help="end each episode at its first incident")
+    parser.add_argument("--scenario", type=Path, default=None, metavar="PATH",
+                        help="run every agent on each scenario of PATH (a scenario YAML "
+                             "file, a folder of them, or an incidents.json to replay its "
+                             "incidents) and report pass/fail with the reason "
+                             "(docs/scenarios.md; default 1 seed)")
     external.add_external_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
@@ -216,7 +234,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.agents is not None:
         args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
-        episodes = args.episodes or (1 if args.endurance else DEFAULT_EPISODES)
+        episodes = args.episodes or (1 if args.endurance or args.scenario else
+                                     DEFAULT_EPISODES)
         first = args.seed or 0
         args.seeds = list(range(first, first + episodes))
     else:
@@ -336,7 +355,8 @@ def output_folder(args: argparse.Namespace) -> Path:
     """The run's folder: ``--output`` (checked: never overwritten silently), else a new
     timestamped one under results/."""
     if args.output is not None:
-        run_folders.prepare_output(args.output, args.overwrite, OWNED_NAMES)
+        run_folders.prepare_output(args.output, args.overwrite,
+                                   (*OWNED_NAMES, SCENARIOS_CSV, SCENARIOS_JSON))
         return args.output
     return run_folders.new_run_folder()
 
@@ -369,6 +389,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         backend = ray_backend(args.ray, args.workers)
     latest = args.output is None
     args.output = output_folder(args)
+    if args.scenario is not None:
+        return scenario_main(args, argv, env_id, env_config, latest, workers, backend)
     specs = episode_specs(args, env_id, env_config)
     console = Console()
     if args.wide and not console.is_terminal:  # logs: do not squeeze the wide table
@@ -446,6 +468,32 @@ def ray_backend(address: str, workers: int | None) -> Any:
     if problem is not None:  # before any folder is made
         raise SystemExit(f"--ray {address}: {problem}; {START_A_CLUSTER}")
     return RayBackend(address, num_cpus=workers)
+
+
+def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
+                  env_config: dict[str, Any], latest: bool, workers: int,
+                  backend: Any) -> dict[str, Any]:
+    """``--scenario``: every agent on each scenario; the verdicts printed and written."""
+    started = time.perf_counter()
+    rows, episodes, failures = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
+                                             env_config, workers, not args.no_progress,
+                                             backend)
+    wall = time.perf_counter() - started
+    run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
+           "seeds": args.seeds, "scenario": str(args.scenario),
+           "command": shlex.join(["evaluate.py", *argv]), "wall_time": wall,
+           "ray": args.ray, "failures": [failure.as_dict() for failure in failures]}
+    files = write_scenario_run(args.output, rows, episodes, run)
+    if latest:
+        run_folders.point_latest_at(args.output)
+    console = Console()
+    passed = sum(row["passed"] for row in rows)
+    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}").rich())
+    console.print(f"{passed} of {len(rows)} passed; {len(rows)} episode(s) in {wall:.1f} s "
+                  f"wall time; results in {args.output}: "
+                  + ", ".join(path.name for path in files), markup=False, highlight=False)
+    return {"rows": rows, "episodes": episodes, "failures": failures, "files": files,
+            "output": args.output}
 
 
 if __name__ == "__main__":

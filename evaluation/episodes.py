@@ -169,8 +169,10 @@ def run_episode(spec: EpisodeSpec, progress: ProgressCallback | None = None) -> 
         road = getattr(env.unwrapped, "road", None)
         loop_length = float(road.length) if road is not None else 0.0
         recorder = TraceRecorder(spec.trace_points) if spec.trace_points > 0 else None
-        incidents = (IncidentRecorder(spec.incident_history) if spec.incident_history > 0
-                     else None)
+        incidents = (IncidentRecorder(spec.incident_history,
+                                      snapshot=getattr(env.unwrapped, "scenario_snapshot",
+                                                       None))
+                     if spec.incident_history > 0 else None)
         observation, info = env.reset(seed=spec.seed)
         if recorder is not None:
             recorder.add(info)

@@ -71,7 +71,8 @@ TRACES_FILE = "traces.npz"
 INCIDENTS_FILE = "incidents.json"
 
 
-def _csv(rows: Iterable[dict[str, Any]], columns: list[str]) -> str:
+def csv_text(rows: Iterable[dict[str, Any]], columns: list[str]) -> str:
+    """``rows`` as CSV text with a header of ``columns`` (other keys of a row left out)."""
     buffer = io.StringIO()
     writer = csv.DictWriter(buffer, fieldnames=columns, extrasaction="ignore")
     writer.writeheader()
@@ -108,7 +109,7 @@ def agent_rows_csv(rows: list[dict[str, Any]]) -> str:
                                              "per_100_miles_ci")}))
         flat_rows.append(flat)
     columns = list(dict.fromkeys(key for flat in flat_rows for key in flat))
-    return _csv(flat_rows, columns)
+    return csv_text(flat_rows, columns)
 
 
 def write_results(output: Path, episodes: list[dict[str, Any]], rows: list[dict[str, Any]],
@@ -140,12 +141,12 @@ def write_results(output: Path, episodes: list[dict[str, Any]], rows: list[dict[
         flat_episodes.append(flat)
     comparisons = comparisons or []
     written = [output / EPISODES_FILE, output / AGENTS_FILE]
-    atomic_write_text(written[0], _csv(flat_episodes, columns))
+    atomic_write_text(written[0], csv_text(flat_episodes, columns))
     atomic_write_text(written[1], agent_rows_csv(rows))
     if comparisons:
         written.append(output / COMPARISONS_FILE)
         flat = [_flat_intervals(comparison) for comparison in comparisons]
-        atomic_write_text(written[-1], _csv(flat, list(flat[0])))
+        atomic_write_text(written[-1], csv_text(flat, list(flat[0])))
     written.append(output / SUMMARY_FILE)
     atomic_write_text(written[-1], json.dumps(
         {"run": run or {}, "agents": rows, "comparisons": comparisons,

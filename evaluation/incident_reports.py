@@ -8,6 +8,12 @@ per env step, the incident's step last. :class:`IncidentRecorder` keeps referenc
 last observations (no copies, a few microseconds per step) and builds the reports only
 when incidents happen; ``evaluate.py`` writes them to ``incidents.json``.
 
+Replays: given the env's ``scenario_snapshot`` (the highway envs have one), the recorder
+also snapshots the env's whole state every :data:`SNAPSHOT_EVERY_S` s and attaches to each
+report, under ``replay``, the newest one from at least ``history_s`` before the incident:
+:func:`sdc_gym.scenarios.replay.incident_scenario` makes a scenario of it that starts
+there, with the same traffic state (``docs/scenarios.md``).
+
 It works on any env whose ``info`` has ``time`` and ``new_incidents`` (every sdc-gym
 env): the ego comes from the observation's ``ego`` row (highway loop) or from ``info``'s
 pose (track loop, which has no traffic to report).
@@ -16,6 +22,7 @@ pose (track loop, which has no traffic to report).
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Callable
 from typing import Any, Final
 
 import numpy as np
@@ -26,6 +33,8 @@ NEARBY_RADIUS_M: Final = 60.0
 """Traffic cars that come this close to the ego during the history are in the report."""
 EGO_FIELDS: Final = ("x", "y", "s", "d", "yaw", "speed")
 CAR_FIELDS: Final = ("x", "y", "vx", "vy", "s", "d")
+SNAPSHOT_EVERY_S: Final = 1.0
+"""Simulated seconds between the recorder's snapshots of the env (for replays)."""
 MAX_REPORTS: Final = 1000
 """Reports kept per episode (a long endurance run with a bad planner counts the rest only)."""
 _DIGITS: Final = 4  # decimals kept in reports (0.1 mm, 0.1 mrad): readable JSON
@@ -39,13 +48,18 @@ class IncidentRecorder:
     """
 
     def __init__(self, history_s: float = DEFAULT_HISTORY_S,
-                 radius_m: float = NEARBY_RADIUS_M) -> None:
+                 radius_m: float = NEARBY_RADIUS_M,
+                 snapshot: Callable[[], dict[str, Any]] | None = None) -> None:
         if not history_s > 0:
             raise ValueError(f"history_s must be > 0 s, got {history_s!r}")
         self.history_s = float(history_s)
         self.radius_m = float(radius_m)
+        self.snapshot = snapshot
         self._samples: deque[tuple[float, Any, dict[str, Any]]] = deque()
         self._snapshots: list[tuple[str, tuple[tuple[float, Any, dict[str, Any]], ...]]] = []
+        self._states: deque[tuple[float, dict[str, Any]]] = deque()  # (time, env snapshot)
+        self._replays: list[dict[str, Any] | None] = []
+        self._next_state_at = 0.0
 
     def add(self, observation: Any, info: dict[str, Any]) -> None:
         """One env step (or the reset): keep it, forget what is older than the history."""
@@ -59,6 +73,24 @@ class IncidentRecorder:
         if kinds and len(self._snapshots) < MAX_REPORTS:
             history = tuple(samples)
             self._snapshots.extend((kind, history) for kind in kinds)
+            replay = self._replay_for(now)
+            self._replays.extend(replay for _ in kinds)
+        if self.snapshot is not None and now >= self._next_state_at - 1e-9:
+            states = self._states
+            states.append((now, self.snapshot()))
+            self._next_state_at = now + SNAPSHOT_EVERY_S
+            # Keep the newest one old enough for any incident to come, and those after it.
+            while len(states) > 1 and states[1][0] <= now - self.history_s + 1e-9:
+                states.popleft()
+
+    def _replay_for(self, now: float) -> dict[str, Any] | None:
+        """The newest snapshot from at least ``history_s`` before ``now`` (the oldest one
+        early in an episode), or ``None`` without snapshots."""
+        chosen = None
+        for time, state in self._states:
+            if chosen is None or time <= now - self.history_s + 1e-9:
+                chosen = state
+        return chosen
 
     def reports(self, incident_log: list[dict[str, Any]]) -> list[dict[str, Any]]:
         """One report per incident: the log's entry plus ``history`` (JSON-ready).
@@ -74,6 +106,8 @@ class IncidentRecorder:
             report = {"kind": kind, **{key: value for key, value in entry.items()
                                        if key != "kind"}}
             report["history"] = self._history(history)
+            if index < len(self._replays) and self._replays[index] is not None:
+                report["replay"] = self._replays[index]
             reports.append(report)
         return reports
 

@@ -43,15 +43,13 @@ table, and ``best_model/`` (the best checkpoint of the best trial) with ``best_m
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import shutil
 from pathlib import Path
 from typing import Any
 
 import yaml
 
-from evaluation.files import atomic_write_text
+from evaluation.files import atomic_write_text, csv_text
 from sdc_gym.config import ConfigError
 from sdc_gym.ray import LOCAL, ray_session
 from sdc_gym.validation.rules import (
@@ -303,13 +301,10 @@ def _metric(metrics: dict[str, Any], metric: str) -> float | None:
 
 
 def _csv(rows: list[dict[str, Any]]) -> str:
-    buffer = io.StringIO()
-    writer = csv.DictWriter(buffer, fieldnames=list(rows[0]) if rows else ["trial"])
-    writer.writeheader()
-    for row in rows:
-        writer.writerow({key: (str(value) if isinstance(value, list) else value)
-                         for key, value in row.items()})
-    return buffer.getvalue()
+    """The trials table as CSV (a list value, e.g. a layer size choice, as its text)."""
+    flat = [{key: (str(value) if isinstance(value, list) else value)
+             for key, value in row.items()} for row in rows]
+    return csv_text(flat, list(rows[0]) if rows else ["trial"])
 
 
 def _print_table(rows: list[dict[str, Any]], metric: str) -> None:

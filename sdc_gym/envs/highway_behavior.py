@@ -15,6 +15,7 @@ from sdc_gym.envs.highway_behavior_world import (
     HighwayBehaviorWorld,
 )
 from sdc_gym.envs.highway_loop import HighwayLoopEnv
+from sdc_gym.scenarios.options import CONFIG, scenario_option
 from sdc_gym.stack.highway.decisions import ACTION_NAMES, HighwayDecision
 
 __all__ = ["ACTION_TYPES", "HighwayLoopBehaviorEnv", "behavior_spaces"]
@@ -146,6 +147,7 @@ class HighwayLoopBehaviorEnv(gym.Env):
         self.action_space, self.observation_space = behavior_spaces(self.batch)
         self.decision_period_s = self.batch.decision_period_s
         self._ready = False
+        self._scenario: Any = CONFIG  # the last reset option's, kept as a batch env's
 
     @property
     def road(self) -> Any:
@@ -155,7 +157,8 @@ class HighwayLoopBehaviorEnv(gym.Env):
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32],
                                                               dict[str, Any]]:
         super().reset(seed=seed)
-        self.batch.reset_at(0, self.np_random)
+        self._scenario = scenario_option(options, self._scenario)
+        self.batch.reset_at(0, self.np_random, self._scenario)
         self.highway._state_ready = self._ready = True
         info = self.batch.info(0, (), final=False)
         info["behavior"] = {"lane_changes": 0, "refused": 0, "aborted": 0}
@@ -175,6 +178,12 @@ class HighwayLoopBehaviorEnv(gym.Env):
             self.render()
         info = self.batch.info(0, incidents[0], final=done_t or done_f, action=action)
         return self.batch.observations[0].copy(), float(reward[0]), done_t, done_f, info
+
+    def scenario_snapshot(self) -> dict[str, Any]:
+        """The env's state now as a scenario mapping (see
+        :meth:`HighwayLoopEnv.scenario_snapshot`; the behavior stack's own state, its
+        queue and executor, starts afresh in a replay)."""
+        return self.highway.scenario_snapshot()
 
     def render(self) -> NDArray[np.uint8] | None:
         return self.highway.render()

@@ -17,6 +17,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.highway_world import HighwayWorld, incident_kinds
+from sdc_gym.scenarios.episode import CONFIG
 from sdc_gym.stack.highway import behavior_kernel
 from sdc_gym.stack.highway.decisions import (
     ACTION_NAMES,
@@ -125,9 +126,10 @@ class HighwayBehaviorWorld:
         self._planned = np.zeros(envs, dtype=bool)
 
     # ------------------------------------------------------------------ episodes
-    def reset_at(self, env: int, rng: np.random.Generator) -> None:
-        """Start env ``env``'s episode; all its randomness comes from ``rng``."""
-        self.world.reset_at(env, rng)
+    def reset_at(self, env: int, rng: np.random.Generator, scenario: Any = CONFIG) -> None:
+        """Start env ``env``'s episode; all its randomness comes from ``rng``; ``scenario``
+        as :meth:`HighwayWorld.reset_at` takes it."""
+        self.world.reset_at(env, rng, scenario)
         self.perception[env].reset()
         self.motion[env].reset()
         self.executors.reset_at(env)
@@ -287,6 +289,8 @@ class HighwayBehaviorWorld:
         info["termination_reason"] = world.done_reason[env] if final else ""
         info["summary"] = world.summary(env) if final else None
         info["behavior"] = self.behavior_info(env, action)
+        if world.traffic.object_slots:
+            info["road_events"] = world.road_events(env)
         return info
 
 

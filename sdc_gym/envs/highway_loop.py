@@ -18,8 +18,11 @@ from sdc_gym.envs.highway_world import (
 )
 from sdc_gym.envs.top_down_env import TopDownRenderEnv
 from sdc_gym.metrics import DrivingMetrics
+from sdc_gym.scenarios.options import CONFIG, scenario_option
 from sdc_gym.sensors.highway_sensors import TelemetryMessage
-from sdc_gym.traffic import VEHICLE_TYPES, HighwayTraffic
+from sdc_gym.traffic import HighwayTraffic
+from sdc_gym.traffic.state import PARKED
+from sdc_gym.traffic.vehicle_types import TYPE_COLORS
 from sdc_gym.units import MPS_TO_MPH
 from sdc_gym.vehicle.path_follower import PHYSICS_DT
 
@@ -43,9 +46,9 @@ def highway_spaces(world: HighwayWorld) -> tuple[spaces.Box, spaces.Dict]:
         "previous_path": spaces.Box(-big, big, shape=(n, 2), dtype=np.float32),
         "previous_path_count": spaces.Discrete(n + 1),
         "end_path": spaces.Box(-big, big, shape=(2,), dtype=np.float32),
-        "sensor_fusion": spaces.Box(-big, big, shape=(world.car_count, 7), dtype=np.float32),
+        "sensor_fusion": spaces.Box(-big, big, shape=(world.slots, 7), dtype=np.float32),
         # A 0/1 Box rather than MultiBinary, which cannot have size 0 (no traffic).
-        "sensor_fusion_mask": spaces.Box(0, 1, shape=(world.car_count,), dtype=np.int8),
+        "sensor_fusion_mask": spaces.Box(0, 1, shape=(world.slots,), dtype=np.int8),
     })
     return action_space, observation_space
 
@@ -67,8 +70,12 @@ class HighwayLoopEnv(TopDownRenderEnv):
     Traffic (12 cars by default) is simulated with numpy arrays: IDM car following, lane
     changes when the target lane is clear by +-20 m, desired speeds of 40-50 mph for cars
     spawned ahead of the ego and 50-60 mph behind it, recycling of cars more than 200 m
-    away, cars, SUVs, trucks and motorcycles of their own sizes, and an optional rogue mode
-    (sudden cut-ins, hard braking) for stress tests.
+    away, cars, SUVs, trucks and motorcycles of their own sizes (buses, vans and
+    semi-trailers through ``traffic.vehicle_mix``), and an optional rogue mode (sudden
+    cut-ins, hard braking) for stress tests. Rare road events (a closed lane, fallen cargo,
+    an animal crossing) come at seeded rates with ``road_events``; a scenario file
+    (``scenario``, or ``reset(options={"scenario": ...})``) sets up a situation exactly,
+    with scripted traffic and its own success condition (``docs/scenarios.md``).
 
     Driving is judged by the original's rules (see :mod:`sdc_gym.metrics`): acceleration
     over 0.2 s blocks (limit 10 m/s^2), jerk over 1 s (10 m/s^3), speed (50 mph), leaving
@@ -108,10 +115,14 @@ class HighwayLoopEnv(TopDownRenderEnv):
     | `previous_path`       | (N, 2)          | unconsumed path points, zero padded        |
     | `previous_path_count` | Discrete(N + 1) | valid rows of `previous_path`              |
     | `end_path`            | (2,)            | s, d of the last unconsumed point, else 0  |
-    | `sensor_fusion`       | (C, 7)          | id, x, y, vx, vy, s, d per traffic car     |
-    | `sensor_fusion_mask`  | (C,) int8 0/1   | 1 where the row holds a sensed car         |
+    | `sensor_fusion`       | (C + K, 7)      | id, x, y, vx, vy, s, d per traffic slot    |
+    | `sensor_fusion_mask`  | (C + K,) int8   | 1 where the row holds a sensed car/object  |
 
-    N is ``path_points``, C the traffic ``car_count``.
+    N is ``path_points``, C the traffic ``car_count``, K the road-object slots
+    (``road_events.object_slots``, or what the config's ``scenario`` needs; 0 by default).
+    Road objects (closed-lane barriers, fallen cargo, animals) are rows ``C..C+K-1`` with
+    their own ids, zero velocity but an animal's; ``info["road_events"]`` (when K > 0)
+    lists the events on the road with their kinds and the ids of their rows.
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
     at the loop length); d is the offset to the right of the yellow centre line, so lane
@@ -153,8 +164,11 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     Terminated: a collision when ``terminate_on_collision`` (default, for RL; set it False
     to count collisions and drive on, like the original and like ``evaluate.py`` does for
-    external planners), or ``laps`` laps completed
-    (``is_success``). Truncated: ``max_duration`` simulated seconds. The final ``info``
+    external planners), ``laps`` laps completed (``is_success``), or the first incident of
+    a kind ``stop_at_incident`` lists (``True``: any; the reason ``stop_at_incident``).
+    Truncated: ``max_duration`` simulated seconds (a scenario's ``duration``, reason
+    ``scenario_end``; its success conditions are ``is_success`` and ``summary["scenario"]``
+    has the verdict and its reason). The final ``info``
     carries ``summary`` (lap times, distance, incidents by kind, max acceleration and jerk,
     distance without incident, and ``incident_log``: each incident's kind, time, step,
     x, y, s, d and value), ``is_success`` and ``termination_reason``; every step's
@@ -176,7 +190,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     ## Version History
 
-    * v0: initial version.
+    * v0: initial version; later, without changing any default episode: scenarios, road
+      events (``road_events``), buses, vans and semi-trailers (``traffic.vehicle_mix``)
+      and ``stop_at_incident``.
     """
 
     DEFAULT_CONFIG: ClassVar[dict[str, Any]] = HIGHWAY_DEFAULTS
@@ -196,6 +212,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self.latency_steps = world.latency_steps
         self.ego_length, self.ego_width = world.ego_length, world.ego_width
         self.car_count = world.car_count
+        self.slots = world.slots
         self.traffic_config, self.sensor_config = world.traffic_config, world.sensor_config
         self.rules = world.rules
         self.traffic = HighwayTraffic.view(world.traffic, 0)
@@ -205,12 +222,14 @@ class HighwayLoopEnv(TopDownRenderEnv):
         self._path = np.zeros((1, self.path_points, 2))
         self._length = np.zeros(1, dtype=np.int64)
         self._state_ready = False
+        self._scenario: Any = CONFIG  # the last reset option's, kept as a batch env's
 
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
         super().reset(seed=seed)
-        self.world.reset_at(0, self.np_random)
+        self._scenario = scenario_option(options, self._scenario)
+        self.world.reset_at(0, self.np_random, self._scenario)
         self._state_ready = True
         return self.world.observation(0), self._info((), final=False)
 
@@ -246,7 +265,16 @@ class HighwayLoopEnv(TopDownRenderEnv):
         info["summary"] = world.summary(0) if final else None
         if self.config["telemetry_info"]:
             info["telemetry"] = TelemetryMessage(*world.telemetry_arguments(0))
+        if world.traffic.object_slots:
+            info["road_events"] = world.road_events(0)
         return info
+
+    def scenario_snapshot(self) -> dict[str, Any]:
+        """The env's state now as a scenario mapping (a replay starts from it exactly:
+        :func:`sdc_gym.scenarios.replay.snapshot`)."""
+        from sdc_gym.scenarios.replay import snapshot
+
+        return snapshot(self.world, 0)
 
     def summary(self) -> dict[str, Any]:
         """The episode's summary so far, as ``info["summary"]`` holds it at the end (an
@@ -267,15 +295,18 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
         traffic = self.traffic
         world = self.world
-        colors = np.array([vehicle.color for vehicle in VEHICLE_TYPES], dtype=np.uint8)
         counts = self.metrics.incident_counts
         xy = world.ego.xy[0]
+        shown = world.traffic.state.role[0] != PARKED
+        zones = [(event["s_start"], event["s_start"] + event["length"], event["lane"])
+                 for event in world.road_events(0) if event["kind"] == "closed_lane"]
         return HighwayScene(
             ego_xy=(float(xy[0]), float(xy[1])), ego_heading=float(world.ego.yaw[0]),
             ego_length=self.ego_length, ego_width=self.ego_width,
-            cars_xy=np.stack([traffic.x, traffic.y], axis=-1), cars_heading=traffic.heading,
-            cars_length=traffic.length, cars_width=traffic.width,
-            cars_color=colors[traffic.type_index], path_xy=self._remaining_path(),
+            cars_xy=np.stack([traffic.x, traffic.y], axis=-1)[shown],
+            cars_heading=traffic.heading[shown], cars_length=traffic.length[shown],
+            cars_width=traffic.width[shown], cars_color=TYPE_COLORS[traffic.type_index[shown]],
+            path_xy=self._remaining_path(),
             speed_mph=float(world.speed[0]) * MPS_TO_MPH, time_s=self.metrics.time,
             laps=self.metrics.laps_completed, distance_m=self.metrics.distance,
-            incidents=dict(counts), status=world.done_reason[0])
+            incidents=dict(counts), status=world.done_reason[0], closed_lanes=zones)

@@ -39,6 +39,7 @@ from sdc_gym.envs.highway_behavior import behavior_spaces
 from sdc_gym.envs.highway_behavior_world import HighwayBehaviorWorld
 from sdc_gym.envs.highway_loop import highway_spaces
 from sdc_gym.envs.highway_world import HighwayWorld
+from sdc_gym.scenarios.options import CONFIG, batch_scenarios
 from sdc_gym.stack.highway.decisions import ACTION_NAMES
 from sdc_gym.validation.actions import discrete_indices, real_array
 
@@ -71,6 +72,9 @@ class _BatchVectorEnv(VectorEnv):
         self.render_mode = None
         self.full_info = bool(full_info)
         self._generators: list[np.random.Generator | None] = [None] * num_envs
+        # Each env's scenario (the config's until reset options give one; kept through
+        # autoresets): sdc_gym.scenarios.options.
+        self._scenarios: list[Any] = [CONFIG] * num_envs
         self._needs_reset = np.zeros(num_envs, dtype=bool)
         self._ready = False
 
@@ -82,6 +86,7 @@ class _BatchVectorEnv(VectorEnv):
 
     # ------------------------------------------------------------------ to implement
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:
+        """Reset env ``env`` (with its scenario, ``self._scenarios[env]``)."""
         raise NotImplementedError
 
     def _observations(self) -> Any:
@@ -132,6 +137,10 @@ class _BatchVectorEnv(VectorEnv):
             if not self._ready and not mask.all():
                 raise RuntimeError("the first reset() must reset every env")
         rows = list(range(self.num_envs)) if mask is None else np.flatnonzero(mask).tolist()
+        scenarios = batch_scenarios(options, self.num_envs)
+        if scenarios is not None:
+            for env in rows:
+                self._scenarios[env] = scenarios[env]
         self._seed_generators(seed, rows)
         for env in rows:
             self._reset_env(env, self._generators[env])  # type: ignore[arg-type]
@@ -227,7 +236,7 @@ class HighwayLoopBehaviorVectorEnv(_BatchVectorEnv):
         self._set_spaces(*behavior_spaces(self.batch))
 
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:
-        self.batch.reset_at(env, rng)
+        self.batch.reset_at(env, rng, self._scenarios[env])
 
     def _observations(self) -> NDArray[np.float32]:
         return self.batch.observations.copy()
@@ -273,7 +282,7 @@ class HighwayLoopVectorEnv(_BatchVectorEnv):
         self._lengths = np.full(num_envs, self.world.path_points, dtype=np.int64)
 
     def _reset_env(self, env: int, rng: np.random.Generator) -> None:
-        self.world.reset_at(env, rng)
+        self.world.reset_at(env, rng, self._scenarios[env])
 
     def _observations(self) -> dict[str, NDArray]:
         return self.world.observations()

@@ -10,6 +10,15 @@ projection on the reference line, the traffic
 at a time (:meth:`HighwayWorld.reset_at`, each from its own generator) and stepped
 together (:meth:`HighwayWorld.step`); env ``i`` of a batch is exactly a single env with
 the same generator and paths, frame for frame.
+
+An env may run a scenario (config ``scenario``, or one per reset: :meth:`reset_at`'s
+``scenario``; :mod:`sdc_gym.scenarios`): its start instead of the random layout, its
+script at the traffic's decision instants, its duration and its verdict as the episode's
+success. Road events (config ``road_events``, or a scenario's) put road objects into
+object slots after the cars' (:mod:`sdc_gym.traffic.road_events`): the sensor fusion has
+a row for every slot (parked ones masked out), and ``info["road_events"]`` lists the
+events on the road. ``world.episodes`` (:mod:`sdc_gym.scenarios.world_episodes`) keeps
+all of it per env.
 """
 
 from __future__ import annotations
@@ -33,9 +42,12 @@ from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap, MapFormatError
+from sdc_gym.scenarios.world_episodes import CONFIG, EpisodeSettings
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig
 from sdc_gym.traffic import IDMParameters, TrafficConfig
 from sdc_gym.traffic.batch import TrafficBatch
+from sdc_gym.traffic.road_events import RoadEventRates
+from sdc_gym.traffic.state import PARKED
 from sdc_gym.validation.actions import real_array
 from sdc_gym.validation.env_configs import check_highway_config, check_highway_start
 from sdc_gym.vehicle.path_follower import PHYSICS_DT, PathFollower
@@ -90,6 +102,11 @@ HIGHWAY_DEFAULTS: dict[str, Any] = {
                         "speed": -1.0, "lane": -1.0, "off_road": -1.0},
     "telemetry_info": True,      # info["telemetry"]: the original's message (built lazily)
     "frenet": "original",        # telemetry s/d: "original" (waypoint polyline) | "exact"
+    "scenario": None,            # scenario file path or mapping (docs/scenarios.md); None:
+                                 # random traffic (reset options may give one per episode)
+    "stop_at_incident": None,    # end the episode at the first incident: True (any kind),
+                                 # or a list of kinds; None / False: drive on
+    "road_events": _dataclass_defaults(RoadEventRates),  # object slots, random event rates
     **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
 }
 """``HighwayLoop-v0``'s config keys with their defaults (units in the comments)."""
@@ -199,8 +216,11 @@ class HighwayWorld:
         self.ego_length = float(cfg["ego_length"])
         self.ego_width = float(cfg["ego_width"])
         self.car_count = self.traffic_config.car_count
-        self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT)
-        self.sensors = HighwaySensors(self.sensor_config, self.car_count, self.road.length,
+        self.episodes = EpisodeSettings(cfg, owner, self.road, self.car_count, envs, _to_tuple)
+        self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT,
+                                    object_slots=self.episodes.object_slots)
+        self.slots = self.traffic.slots  # sensor-fusion rows: cars, then road objects
+        self.sensors = HighwaySensors(self.sensor_config, self.slots, self.road.length,
                                       envs)
         self.metrics = DrivingMetricsBatch(self.rules, self.road.length, envs)
         self.ego = PathFollower(envs, self.path_points, self.steps_per_action,
@@ -230,8 +250,8 @@ class HighwayWorld:
         self.d = np.zeros(envs)
         self.speed = np.zeros(envs)
         self.end_sd = np.zeros((envs, 2))
-        self.fusion = np.zeros((envs, self.car_count, 7))
-        self.fusion_mask = np.ones((envs, self.car_count), dtype=bool)
+        self.fusion = np.zeros((envs, self.slots, 7))
+        self.fusion_mask = np.ones((envs, self.slots), dtype=bool)
         self.collided = np.zeros(envs, dtype=bool)
         self.done_reason = [""] * envs
         self.rngs: list[np.random.Generator | None] = [None] * envs
@@ -239,13 +259,20 @@ class HighwayWorld:
         self._all_rows_present = self.sensor_config.dropout_probability == 0.0
 
     # ------------------------------------------------------------------ episodes
-    def reset_at(self, env: int, rng: np.random.Generator) -> None:
-        """Start env ``env``'s episode; all its randomness comes from ``rng``."""
+    def reset_at(self, env: int, rng: np.random.Generator, scenario: Any = CONFIG) -> None:
+        """Start env ``env``'s episode; all its randomness comes from ``rng``.
+
+        ``scenario``: the config's (the default), ``None`` (random traffic), or a scenario
+        (a file path, a mapping or a :class:`~sdc_gym.scenarios.model.Scenario`).
+        """
+        if self.episodes.reset(self, env, rng, scenario):
+            return
         self.rngs[env] = rng
         self.ego.reset_at(env, self.start_xy, self.start_yaw)
         self.s[env], self.d[env], self.speed[env] = self.start_s, self.start_d, 0.0
         self.end_sd[env] = 0.0
         self.traffic.reset_at(env, rng, self.start_s, self.start_d)
+        self.episodes.random_started(self, env, rng)
         self.sensors.reset_at(env)
         self.metrics.reset_at(env, float(self.start_xy[0]), float(self.start_xy[1]),
                               self.start_s, self.start_d, 0.0)
@@ -330,15 +357,17 @@ class HighwayWorld:
                 if incident.kind == "collision":
                     collision[env] = True
         self.collided |= collision
+        stopped = self.episodes.record(self, incidents, self.d)
         terminated = collision & self.config["terminate_on_collision"]
         lapped = ~terminated & (metrics.laps >= self.config["laps"])
-        terminated = terminated | lapped
+        terminated = terminated | lapped | stopped
         truncated = ~terminated & (metrics.steps * self.rules.dt
-                                   >= self.config["max_duration"] - 1e-9)
+                                   >= self.episodes.max_duration - 1e-9)
         for env in np.flatnonzero(terminated | truncated).tolist():
             self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
                                      and self.config["terminate_on_collision"]
-                                     else "laps_completed" if lapped[env] else "max_duration")
+                                     else "laps_completed" if lapped[env]
+                                     else self.episodes.reason(env) or "max_duration")
         return StepResult(reward, terminated, truncated, incidents)
 
     def _project(self, xy: FloatArray, speed: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -360,11 +389,15 @@ class HighwayWorld:
         if rows is None:
             self.fusion, mask = self.sensors.read(st.ids, st.x, st.y, st.vx, st.vy, st.s,
                                                   st.d, self.rngs)  # type: ignore[arg-type]
+            if self.traffic.scripted:
+                self.fusion, mask = _hide_parked(self.fusion, mask, st.role)
             self.fusion_mask = mask
             return
         fusion, mask = self.sensors.read(st.ids[rows], st.x[rows], st.y[rows], st.vx[rows],
                                          st.vy[rows], st.s[rows], st.d[rows],
                                          [self.rngs[e] for e in rows.tolist()])  # type: ignore[misc]
+        if self.traffic.scripted:
+            fusion, mask = _hide_parked(fusion, mask, st.role[rows])
         self.fusion = self.fusion.copy()
         self.fusion[rows] = fusion
         self.fusion_mask = self.fusion_mask.copy()
@@ -413,6 +446,9 @@ class HighwayWorld:
         return min(max(lane, -1), self.road.lane_count)  # as HighwayMap.lane_of
 
     def is_success(self, env: int) -> bool:
+        verdict = self.episodes.is_success(self, env)  # a scenario's own conditions
+        if verdict is not None:
+            return verdict
         return bool(self.metrics.laps[env] >= self.config["laps"])
 
     def summary(self, env: int) -> dict[str, Any]:
@@ -423,16 +459,36 @@ class HighwayWorld:
         summary["collided"] = bool(self.collided[env])
         summary["incident_log"] = [incident.as_dict()
                                    for incident in self.metrics.incidents[env]]
+        scenario = self.episodes.summary(self, env)
+        if scenario is not None:
+            summary["scenario"] = scenario
         return summary
+
+    def road_events(self, env: int) -> list[dict[str, Any]]:
+        """The road events on env ``env``'s road (``info["road_events"]``)."""
+        return self.episodes.road_events(self, env)
 
     def telemetry_arguments(self, env: int) -> tuple[Any, ...]:
         """Arguments of :func:`~sdc_gym.sensors.highway_sensors.telemetry_message` for
         env ``env`` (arrays copied: the message is built lazily)."""
         fusion = self.fusion[env]
-        rows = fusion.copy() if self._all_rows_present else fusion[self.fusion_mask[env]]
+        every_row = self._all_rows_present and not self.traffic.scripted
+        rows = fusion.copy() if every_row else fusion[self.fusion_mask[env]]
         return (*self.ego.xy[env].tolist(), float(self.ego.yaw[env]), float(self.speed[env]),
                 float(self.s[env]), float(self.d[env]), self.ego.remaining(env).copy(),
                 *self.end_sd[env].tolist(), rows, self.telemetry_frenet)
+
+
+def _hide_parked(fusion: FloatArray, mask: NDArray[np.bool_], role: IntArray
+                 ) -> tuple[FloatArray, NDArray[np.bool_]]:
+    """Parked slots (free object slots, car slots a scenario leaves empty) are not sensed:
+    their rows zero, their mask 0."""
+    parked = role == PARKED
+    if not np.count_nonzero(parked):
+        return fusion, mask
+    fusion = fusion.copy()
+    fusion[parked] = 0.0
+    return fusion, mask & ~parked
 
 
 def incident_kinds(incidents: tuple[Incident, ...] | list[Incident]) -> list[str]:

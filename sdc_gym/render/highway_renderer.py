@@ -9,9 +9,12 @@ upright.
 
 Drawn, back to front: grass, road surface, lane lines (solid yellow centre line at
 ``d = 0`` on the left, dashed white between lanes, solid white right edge), distance
-markers every 100 m (a tick right of the road and ``"1.2 km"``), the planner's path points
-(small green dots, the original's green spheres), traffic (oriented rectangles in the
-colour the env chose from the vehicle type), the ego (:data:`EGO_COLOR`), a text panel
+markers every 100 m (a tick right of the road and ``"1.2 km"``), closed lanes (a
+construction zone: the lane's surface in :data:`ZONE_COLOR` with a row of cones along its
+edges and across its start), the planner's path points (small green dots, the original's
+green spheres), traffic and road objects (oriented rectangles in the colour the env chose
+from their kind: barriers orange, cargo brown, animals tan), the ego (:data:`EGO_COLOR`), a
+text panel
 (speed, time, lap, distance, incidents by kind), an optional status line, and the mini-map
 of the whole loop with ego and traffic dots.
 
@@ -51,6 +54,10 @@ WHITE_LINE_COLOR: Color = (235, 235, 235)
 MARKER_COLOR: Color = (250, 250, 250)
 EGO_COLOR: Color = (230, 40, 40)
 PATH_COLOR: Color = (0, 255, 0)
+ZONE_COLOR: Color = (112, 86, 52)  # a closed lane's surface
+CONE_COLOR: Color = (255, 140, 0)
+CONE_SPACING_M = 4.0
+CONE_RADIUS_M = 0.35
 
 MARKER_SPACING_M = 100.0
 DASH_LENGTH_M = 3.0  # US lane dashes: 10 ft paint, 30 ft gap
@@ -76,6 +83,7 @@ class HighwayScene:
         speed_mph, time_s, laps, distance_m: shown in the text panel.
         incidents: incident kind -> count, shown one kind per line.
         status: free text line (e.g. ``"collision!"`` or the agent mode); empty hides it.
+        closed_lanes: ``(s_start, s_end, lane)`` of each closed lane (construction zone).
     """
 
     ego_xy: tuple[float, float]
@@ -94,6 +102,7 @@ class HighwayScene:
     distance_m: float
     incidents: dict[str, int] = field(default_factory=dict)
     status: str = ""
+    closed_lanes: list[tuple[float, float, int]] = field(default_factory=list)
 
 
 class HighwayRenderer(TopDownRenderer):
@@ -211,6 +220,10 @@ class HighwayRenderer(TopDownRenderer):
                 ly = label_at[i, 1] + uy * 0.5 * label.get_height()
                 surface.blit(label, label.get_rect(center=(round(lx), round(ly))))
 
+        # Construction zones: the closed lane's surface, cones along it and across its start.
+        for s_start, s_end, lane in scene.closed_lanes:
+            self._draw_closed_lane(surface, s_start, s_end, lane, ego, ego_xy, heading)
+
         # Planner path points.
         self._draw_path_dots(surface, scene.path_xy, ego_xy, heading, PATH_COLOR,
                              max(2.0, PATH_DOT_M * self.ppm))
@@ -238,6 +251,37 @@ class HighwayRenderer(TopDownRenderer):
 
         self._draw_overlay(surface, scene)
         self._draw_minimap(surface, scene, cars)
+
+    def _draw_closed_lane(self, surface: Any, s_start: float, s_end: float, lane: int,
+                          ego: NDArray[np.float64], ego_xy: tuple[float, float],
+                          heading: float) -> None:
+        """A closed lane from ``s_start`` to ``s_end``, drawn where it is in view."""
+        ref = self.road.reference
+        width = self.road.lane_width
+        s = np.arange(s_start, s_end + 1e-9, SAMPLE_STEP_M)
+        if not len(s):
+            return
+        left = ref.to_xy(ref.wrap_s(s), np.full(len(s), lane * width))
+        right = ref.to_xy(ref.wrap_s(s), np.full(len(s), (lane + 1) * width))
+        reach = self.view_radius_m + SAMPLE_STEP_M
+        seen = np.hypot(*(left - ego).T) < reach
+        if not seen.any():
+            return
+        rows = np.flatnonzero(seen)
+        band = np.concatenate([left[rows], right[rows][::-1]])
+        if len(rows) >= 2:
+            self._pg.draw.polygon(surface, ZONE_COLOR,
+                                  self.world_to_screen(band, ego_xy, heading).tolist())
+        cones_s = np.arange(s_start, s_end + 1e-9, CONE_SPACING_M)
+        across = np.linspace(lane * width + 0.4, (lane + 1) * width - 0.4, 4)
+        points = [ref.to_xy(ref.wrap_s(cones_s), np.full(len(cones_s), d))
+                  for d in (lane * width + 0.3, (lane + 1) * width - 0.3)]
+        points.append(ref.to_xy(ref.wrap_s(np.full(4, s_start)), across))
+        cones = np.concatenate(points)
+        cones = cones[np.hypot(*(cones - ego).T) < reach]
+        radius = max(1.5, CONE_RADIUS_M * self.ppm)
+        for x, y in self.world_to_screen(cones, ego_xy, heading).tolist():
+            self._pg.draw.circle(surface, CONE_COLOR, (x, y), radius)
 
     def _draw_overlay(self, surface: Any, scene: HighwayScene) -> None:
         lines = [

@@ -10,6 +10,12 @@ Envs reset at different times have different phases of the decision period, so o
 advance may hold several decision rounds: round ``j`` takes every env's ``j``-th decision
 of the window (each env's segment since its previous one first). Env ``i`` of a batch is
 exactly a single env (a batch of one) with the same generator, frame for frame.
+
+Scenarios and road events (:mod:`sdc_gym.traffic.scripted`): ``object_slots`` columns
+follow the ``car_count`` cars (parked in random traffic, road objects when an event places
+them); an env may start from explicit slots (:meth:`TrafficBatch.reset_slots_at`) and have
+a *controller* (a scenario's script, the random road events) called at each of its
+decision instants. Until a batch holds such slots (``scripted``), none of this runs.
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from sdc_gym.generator_kernel import generator_pointers
 from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic import decisions, placement
+from sdc_gym.traffic import scripted as scripting
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.decisions import decide
 from sdc_gym.traffic.kinematics import (
@@ -110,10 +117,11 @@ class TrafficBatch:
         config: traffic settings (``None``: the defaults).
         envs: number of envs.
         dt: s, the physics step.
+        object_slots: columns for road objects after the ``car_count`` cars.
     """
 
     def __init__(self, road: HighwayMap, config: TrafficConfig | None = None, envs: int = 1,
-                 dt: float = 0.02) -> None:
+                 dt: float = 0.02, object_slots: int = 0) -> None:
         if envs < 1:
             raise ValueError(f"envs must be >= 1, got {envs}")
         self.road = road
@@ -149,14 +157,18 @@ class TrafficBatch:
         self.respawn_draws = placement.respawn_draws(self)
         cdf = self.type_p.cumsum()
         self.type_cdf = cdf / cdf[-1]
-        self.state = TrafficState(envs, config.car_count, config.lane_change_duration)
+        self.object_slots = int(object_slots)
+        self.slots = config.car_count + self.object_slots
+        self.state = TrafficState(envs, self.slots, config.lane_change_duration)
         self.rngs: list[np.random.Generator | None] = [None] * envs
+        self.controllers: list[scripting.TrafficController | None] = [None] * envs
+        self.scripted = self.object_slots > 0
         # Each env's generator as the kernels draw from it (sdc_gym.generator_kernel).
         self.rng_pointers = np.zeros((envs, 4), dtype=np.uint64)
         self._all = np.ones(envs, dtype=bool)
         self._ready = False
         self._round_plans: dict[int, tuple[NDArray, ...]] = {}
-        self._scratch_for(config.car_count)
+        self._scratch_for(self.slots)
 
     def _decision_constants(self) -> FloatArray:
         cfg, idm = self.config, self.config.idm
@@ -228,11 +240,29 @@ class TrafficBatch:
         """Lay out env ``env``'s cars around its ego; all its randomness comes from ``rng``
         (kept for :meth:`advance`)."""
         st = self.state
-        if st.cars != self.config.car_count:
-            self.state = st = TrafficState(self.envs, self.config.car_count,
+        if st.cars != self.slots:
+            self.state = st = TrafficState(self.envs, self.slots,
                                            self.config.lane_change_duration)
         self._use_generator(env, rng)
-        reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        self.controllers[env] = None
+        if self.object_slots:  # the cars as without object slots, then the slots parked
+            scripting.reset_random_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        else:
+            reset_row(self, st, env, rng, ego_s, ego_d, ego_speed)
+        self._settle_pose(env)
+
+    def reset_slots_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
+                       ego_speed: float, slots: list[scripting.SlotSpec], *, step: int = 0,
+                       respawn_blocked_steps: int = 0,
+                       controller: scripting.TrafficController | None = None) -> None:
+        """Env ``env`` from explicit slots (one :class:`~sdc_gym.traffic.slots.SlotSpec`
+        per column: scenarios, replays) with its ``controller``, its traffic clock at
+        ``step`` (a replay continues the recorded one)."""
+        self.scripted = True
+        self._use_generator(env, rng)
+        self.controllers[env] = controller
+        scripting.reset_slots_row(self, self.state, env, rng, ego_s, ego_d, ego_speed, slots,
+                                  step, respawn_blocked_steps)
         self._settle_pose(env)
 
     def reset_to_at(self, env: int, rng: np.random.Generator, ego_s: float, ego_d: float,
@@ -288,12 +318,19 @@ class TrafficBatch:
         """Env ``env``'s curvature and pose after its placement."""
         st = self.state
         st.kappa[env] = self.geometry.curvature(st.s[env])
-        self.geometry.update_pose(st, self.geometry.samples_now(st, env), env)
+        samples = self.geometry.samples_now(st, env)
+        if self.scripted:
+            scripting.place_objects(self.geometry, st, st.step[env:env + 1] - 1, samples,
+                                    np.array([env]))
+        self.geometry.update_pose(st, samples, env)
 
     # ------------------------------------------------------------------ motion
     def samples_now(self) -> TrafficSamples:
         """The current state as a one-frame :class:`TrafficSamples` (``(envs, 1, cars)``)."""
-        return self.geometry.samples_now(self.state)
+        samples = self.geometry.samples_now(self.state)
+        if self.scripted:
+            scripting.place_objects(self.geometry, self.state, self.state.step - 1, samples)
+        return samples
 
     def advance(self, frames: int, ego_s: FloatArray, ego_d: FloatArray,
                 ego_speed: FloatArray) -> TrafficSamples:
@@ -328,11 +365,18 @@ class TrafficBatch:
             for j in range(rounds):
                 self.geometry.segments(st, rows[j], begin[j], end[j], step0, out,
                                        keep_end=True)
+                if self.scripted:
+                    lc_start = scripting.before_decision_round(
+                        self, st, rows[j], end[j], step0, ego_s, ego_d, ego_speed)
                 decide(self, rows[j], end[j], step0, ego_s, ego_d, ego_speed)
+                if self.scripted:
+                    scripting.after_decision(st, lc_start, rows[j])
             # The last segment of every env, from its last decision to the window's end.
             self.geometry.segments(st, self._all, begin[rounds], end[rounds], step0, out,
                                    keep_end=False)
         samples = self.geometry.pose(*out)
+        if self.scripted:
+            scripting.place_objects(self.geometry, st, step0, samples)
         close_window(st.car_floats, st.env_ints, st.env_floats, step0, frames, ego_s, ego_d,
                      ego_speed, self.loop, samples.s, samples.d, samples.speed, samples.x,
                      samples.y, samples.heading, samples.vx, samples.vy)

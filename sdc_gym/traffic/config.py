@@ -8,13 +8,14 @@ or for a batch of envs (``(envs, frames, cars)``).
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.traffic.idm import IDMParameters
-from sdc_gym.traffic.vehicle_types import spawn_probabilities
+from sdc_gym.traffic.vehicle_types import mix_weights, spawn_probabilities
 
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
@@ -73,7 +74,9 @@ class TrafficConfig:
             costs ~50 us more per 0.1 s with 12 cars.
         speed_ahead_mph: (min, max) desired speed of cars spawned ahead of the ego.
         speed_behind_mph: (min, max) desired speed of cars spawned behind the ego.
-        vehicle_mix: spawn weights per :data:`VEHICLE_TYPES` entry; None = their defaults.
+        vehicle_mix: spawn weights: one per :data:`VEHICLE_TYPES` entry, or a mapping of
+            kind names to weights (the kinds it leaves out weigh 0), e.g.
+            ``{"car": 0.6, "bus": 0.1}``; None = the kinds' own weights.
         idm: car-following parameters (``a_max`` and ``b`` are overridden per vehicle type).
         ego_length: m, the ego car's length (for gaps to it).
         ego_width: m, the ego car's width (for the lanes it occupies).
@@ -105,7 +108,7 @@ class TrafficConfig:
     decision_period: int = 10
     speed_ahead_mph: tuple[float, float] = (40.0, 50.0)
     speed_behind_mph: tuple[float, float] = (50.0, 60.0)
-    vehicle_mix: tuple[float, ...] | None = None
+    vehicle_mix: tuple[float, ...] | Mapping[str, float] | None = None
     idm: IDMParameters = field(default_factory=IDMParameters)
     ego_length: float = 4.7
     ego_width: float = 1.9
@@ -134,6 +137,8 @@ class TrafficConfig:
             if not ok:
                 raise ValueError(f"TrafficConfig: {message}")
         spawn_probabilities(self.vehicle_mix)  # validates the mix
+        # Kept as one weight per kind (hashable, and one form for the kernels).
+        object.__setattr__(self, "vehicle_mix", mix_weights(self.vehicle_mix))
 
 
 @dataclass(frozen=True)

@@ -60,6 +60,7 @@ from sdc_gym.traffic.vehicle_types import (
     TYPE_COMFORT_ACCEL,
     TYPE_COMFORT_DECEL,
     TYPE_LENGTHS,
+    TYPE_MAX_SPEED_MPH,
     TYPE_WIDTHS,
     VEHICLE_TYPES,
 )
@@ -216,6 +217,8 @@ def recycle_row(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
             u = draw.random(rng)
             desired[k] = MPH * (bands[4] + u * span_ahead if offsets[k] > 0
                                 else bands[6] + u * span_behind)
+            # A coach or a semi keeps to its own limit (inf for the others: no change).
+            desired[k] = min(desired[k], MPH * TYPE_MAX_SPEED_MPH[type_index])
         k, speed = find_spot(cf, ci, ef, constants, kappa_grid, kappa_table, r, i,
                              type_index, offsets, spot_lanes, desired)
         if k < 0:  # no room (dense traffic): the car drives on; retry in a while
@@ -407,6 +410,7 @@ def reset_row(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Gene
         rel[i], lane = spot
         lo, hi = cfg.speed_ahead_mph if rel[i] > 0.0 else cfg.speed_behind_mph
         desired = MPH * rng.uniform(lo, hi)
+        desired = min(desired, MPH * VEHICLE_TYPES[type_index].max_speed_mph)
         s = float(batch.reference.wrap_s(st.ego_s[r] + rel[i]))
         new_car(batch, st, r, i, type_index, s, lane, desired, desired, rng)
     _settle_speeds(batch, st, r)

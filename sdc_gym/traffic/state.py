@@ -22,6 +22,14 @@ IntArray = NDArray[np.int64]
 NEVER = -(2**40)  # a step index long past: "no lane change started"
 IDLE = 2**62  # lane-change end step of a car that is not changing lanes
 
+# Roles of a slot (``TrafficState.role``): a traffic car (recycled, decides for itself), a
+# road object (a static obstacle or a crossing animal: never recycled, never decides, in
+# the lanes its footprint touches), or a parked slot (nothing: no lane, no contact, not
+# sensed; the free object slots, and car slots a scenario leaves empty).
+TRAFFIC = 0
+OBJECT = 1
+PARKED = 2
+
 
 class TrafficState:
     """The arrays of a batch's traffic (see the module docstring).
@@ -36,7 +44,11 @@ class TrafficState:
     ``half_acc`` (held between decisions), the lateral wander's ``omega``, ``phase`` and
     ``wander_speed``, the lane change's ``lc_start``, ``lc_end`` and ``lc_duration``, the
     wish being sustained (``pending`` lane, ``held`` decisions), the rogue timers
-    ``brake_until`` and ``cut_in_until``, and ``respawn_wait``.
+    ``brake_until`` and ``cut_in_until``, and ``respawn_wait``. Scenarios and road events
+    (:mod:`sdc_gym.traffic.roles`): the slot's ``role``, ``hold_lane``, a scripted
+    acceleration ``forced_acc`` in force until step ``forced_until``, and a road object's
+    lateral position ``base_d`` with its drift ``lateral_rate`` from step ``lateral_from``
+    to ``lateral_until``.
 
     Per env, ``(envs,)``: ``step`` (physics frames since the reset),
     ``respawn_blocked_until``, ``rogue_brake_count``, ``rogue_cut_in_count`` and the ego's
@@ -46,10 +58,11 @@ class TrafficState:
     CAR_FLOATS: ClassVar[tuple[str, ...]] = (
         "length", "width", "half_length", "a_max", "tsab", "s", "d", "speed", "desired",
         "x", "y", "heading", "vx", "vy", "kappa", "acc", "half_acc", "omega", "phase",
-        "wander_speed", "lc_duration")
+        "wander_speed", "lc_duration", "forced_acc", "base_d", "lateral_rate")
     CAR_INTS: ClassVar[tuple[str, ...]] = (
         "ids", "spawn_count", "type_index", "origin", "target_lane", "lc_start", "lc_end",
-        "pending", "held", "brake_until", "cut_in_until", "respawn_wait")
+        "pending", "held", "brake_until", "cut_in_until", "respawn_wait", "role",
+        "hold_lane", "forced_until", "lateral_from", "lateral_until")
     ENV_INTS: ClassVar[tuple[str, ...]] = (
         "step", "respawn_blocked_until", "rogue_brake_count", "rogue_cut_in_count")
     ENV_FLOATS: ClassVar[tuple[str, ...]] = ("ego_s", "ego_d", "ego_speed")
@@ -77,6 +90,9 @@ class TrafficState:
     phase: FloatArray
     wander_speed: FloatArray
     lc_duration: FloatArray
+    forced_acc: FloatArray
+    base_d: FloatArray
+    lateral_rate: FloatArray
     ids: IntArray
     spawn_count: IntArray
     type_index: IntArray
@@ -89,6 +105,11 @@ class TrafficState:
     brake_until: IntArray
     cut_in_until: IntArray
     respawn_wait: IntArray
+    role: IntArray
+    hold_lane: IntArray
+    forced_until: IntArray
+    lateral_from: IntArray
+    lateral_until: IntArray
     step: IntArray
     respawn_blocked_until: IntArray
     rogue_brake_count: IntArray

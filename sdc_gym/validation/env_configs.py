@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any, Final
 
 from sdc_gym.config import ConfigError
+from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.validation.bounds import (
     MAX_CAR_COUNT,
     MAX_DURATION_S,
@@ -24,7 +25,7 @@ from sdc_gym.validation.bounds import (
     MAX_RENDER_PX,
     MAX_STEP_FRAMES,
 )
-from sdc_gym.validation.rules import Number, NumberList, Pair, Rule, check_rules, check_value
+from sdc_gym.validation.rules import Number, Pair, Rule, check_rules, check_value
 
 PHYSICS_DT: Final = 0.02  # s: both loops' physics frame
 
@@ -32,6 +33,46 @@ POSITIVE = Number(0.0, low_open=True)
 NON_NEGATIVE = Number(0.0)
 PROBABILITY = Number(0.0, 1.0)
 FINITE = Number()
+
+class VehicleMix:
+    """``traffic.vehicle_mix``: ``None``, one weight >= 0 per vehicle kind, or a mapping of
+    kind names to weights (the kinds it leaves out weigh 0); not all 0."""
+
+    def problem(self, value: Any) -> str | None:
+        from sdc_gym.traffic.vehicle_types import VEHICLE_NAMES
+
+        expectation = (f"None, a list of {len(VEHICLE_NAMES)} weights >= 0 (one per kind "
+                       f"{list(VEHICLE_NAMES)}) or a mapping of kind names to weights, "
+                       "not all 0")
+        if value is None:
+            return None
+        if isinstance(value, Mapping):
+            weights = list(value.values())
+            if set(value) - set(VEHICLE_NAMES):
+                return expectation
+        elif isinstance(value, list | tuple):
+            weights = list(value)
+            if len(weights) != len(VEHICLE_NAMES):
+                return expectation
+        else:
+            return expectation
+        if any(NON_NEGATIVE.problem(w) for w in weights) or not sum(weights) > 0:
+            return expectation
+        return None
+
+
+class StopKinds:
+    """``stop_at_incident``: ``None``/``False`` (drive on), ``True`` (any kind) or a list
+    of incident kinds."""
+
+    def problem(self, value: Any) -> str | None:
+        if value is None or isinstance(value, bool):
+            return None
+        if isinstance(value, list | tuple) and value and all(
+                isinstance(kind, str) and kind in INCIDENT_KINDS for kind in value):
+            return None
+        return f"None, true, false or a non-empty list of incident kinds of {list(INCIDENT_KINDS)}"
+
 
 RENDER_RULES: Final[dict[str, Rule]] = {
     "render_width": Number(1, MAX_RENDER_PX, integer=True, unit="px"),
@@ -74,7 +115,7 @@ HIGHWAY_RULES: Final[dict[str, Rule]] = {
     "traffic.decision_period": Number(1, 1000, integer=True, unit="physics frames"),
     "traffic.speed_ahead_mph": Pair(Number(0.0, 200.0, unit="mph")),
     "traffic.speed_behind_mph": Pair(Number(0.0, 200.0, unit="mph")),
-    "traffic.vehicle_mix": NumberList(NON_NEGATIVE, optional=True),
+    "traffic.vehicle_mix": VehicleMix(),
     "traffic.idm.a_max": Number(0.0, 50.0, low_open=True, unit="m/s^2"),
     "traffic.idm.b": Number(0.0, 50.0, low_open=True, unit="m/s^2"),
     "traffic.idm.T": Number(0.0, 60.0, unit="s"),
@@ -96,8 +137,40 @@ HIGHWAY_RULES: Final[dict[str, Rule]] = {
     "incident_rules.speed_limit": Number(0.0, low_open=True, allow_inf=True, unit="m/s"),
     "incident_rules.max_straddle_steps": Number(0, 10**9, integer=True),
     "reward_progress": FINITE,
+    "stop_at_incident": StopKinds(),
+    "road_events.object_slots": Number(0, MAX_CAR_COUNT, integer=True, unit="slots",
+                                       why="each is a sensor-fusion row and a traffic slot"),
+    "road_events.closed_lane_per_km": Number(0.0, 100.0, unit="events per km driven"),
+    "road_events.cargo_per_km": Number(0.0, 100.0, unit="events per km driven"),
+    "road_events.animal_per_km": Number(0.0, 100.0, unit="events per km driven"),
+    "road_events.spawn_ahead": Pair(Number(0.0, 10_000.0, unit="m ahead of the ego")),
+    "road_events.clear_behind": Number(0.0, 10_000.0, unit="m behind the ego"),
+    "road_events.closed_lane_length": Pair(Number(8.0, 5_000.0, unit="m")),
+    "road_events.animal_speed": Pair(Number(0.0, 20.0, low_open=True, unit="m/s")),
     **RENDER_RULES,
 }
+
+
+def stop_kinds(value: Any) -> frozenset[str]:
+    """The incident kinds ``stop_at_incident`` stops at (checked already): all of them for
+    ``True``, none for ``None`` or ``False``."""
+    if value is True:
+        return frozenset(INCIDENT_KINDS)
+    if not value:
+        return frozenset()
+    return frozenset(value)
+
+
+def check_road_event_slots(config: Mapping[str, Any], owner: str) -> None:
+    """Random road events need somewhere to go: rates above 0 with no object slots are an
+    error (not silently no events)."""
+    events = config["road_events"]
+    rates = {key: events[key] for key in ("closed_lane_per_km", "cargo_per_km",
+                                          "animal_per_km") if events[key]}
+    if rates and events["object_slots"] == 0:
+        raise ConfigError(f"{owner}: config key 'road_events.object_slots' must be >= 1 "
+                          f"for random road events ({rates}): a closed lane takes one slot "
+                          "per 8 m of closure, cargo and animals one each; got 0")
 
 
 def step_frames_rule(max_duration: Any, key: str = "steps_per_action") -> Number:
@@ -116,6 +189,7 @@ def step_frames_rule(max_duration: Any, key: str = "steps_per_action") -> Number
 def check_highway_config(config: Mapping[str, Any], owner: str) -> None:
     """The highway env's rules (table, step bound, latency), before anything is built."""
     check_rules(HIGHWAY_RULES, config, owner)
+    check_road_event_slots(config, owner)
     frames = step_frames_rule(config["max_duration"])
     check_value(frames, config["steps_per_action"], owner, "steps_per_action")
     latency = config["latency_steps"]

@@ -76,3 +76,44 @@ def read_yaml(path: str | os.PathLike[str], what: str,
         return parse_yaml(text)
     except yaml.YAMLError as problem:
         raise error(f"{path}: the {what} is not valid YAML ({problem})") from None
+
+
+def parse_yaml_lines(text: str) -> tuple[Any, dict[str, int]]:
+    """YAML text to Python values (as :func:`parse_yaml`) and the line (1-based) of every
+    key and list item, by key path (``"cars[2].speed"``; ``""`` is the document), read
+    from PyYAML's node tree so that errors can name the line."""
+    loader = _Yaml12Loader(text)
+    try:
+        node = loader.get_single_node()
+        data = loader.construct_document(node) if node is not None else None
+    finally:
+        loader.dispose()
+    lines: dict[str, int] = {}
+    if node is not None:
+        _node_lines(node, "", lines)
+    return data, lines
+
+
+def _node_lines(node: yaml.Node, path: str, lines: dict[str, int]) -> None:
+    lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for key, value in node.value:
+            name = f"{path}.{key.value}" if path else str(key.value)
+            lines[name] = key.start_mark.line + 1
+            _node_lines(value, name, lines)
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _node_lines(item, f"{path}[{index}]", lines)
+
+
+def read_yaml_lines(path: str | os.PathLike[str], what: str,
+                    error: type[Exception] = ValueError) -> tuple[Any, dict[str, int]]:
+    """A YAML file's content and its lines by key path (see :func:`parse_yaml_lines`);
+    ``error`` (naming the file and line) for an unreadable file or invalid YAML."""
+    text = read_text(path, what, error)
+    try:
+        return parse_yaml_lines(text)
+    except yaml.YAMLError as problem:
+        mark = getattr(problem, "problem_mark", None)
+        where = f"{path}:{mark.line + 1}" if mark is not None else f"{path}"
+        raise error(f"{where}: the {what} is not valid YAML ({problem})") from None

@@ -51,6 +51,9 @@ Where this implementation goes beyond the seed's prose, and why
   ``lead + replan_keep`` points so that the new plan joins the path the car is actually
   on. :meth:`MotionParameters.for_env` reads the env's timing. If the car is ever found
   off the queue (the env moved it) the planner starts afresh from the observed pose.
+  An episode that starts with the car moving (a scenario or a replay: the car is on a
+  path of the env's) plans its first states from where the car will be when the first
+  plan arrives, ``latency_frames`` increments along its heading.
 * **Steering resumes on the queued states.** States planned while the behavior muted
   the steering (the seed's Launch) run straight for a path's length after the launch
   ends (about 20 m at 40 mph): where the road bends there, as 25 m after the original

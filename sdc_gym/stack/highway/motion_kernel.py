@@ -117,6 +117,15 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
             last_row[e, INCREMENT] = ego[e, 5] * step_s
             has_last[e] = True
             floats[e, 2], floats[e, 3] = ego[e, 0], ego[e, 1]
+            if counters[e, 0] == 0 and ego[e, 5] > 0.0 and latency > 0:
+                # A moving start (a scenario, a replay): the car drives `latency` more
+                # frames on the path it has before this plan arrives. Plan from where it
+                # will be, and do not take it for lost before it reaches this plan.
+                ahead = latency * last_row[e, INCREMENT]
+                last_row[e, X] += ahead * math.cos(ego[e, 4])
+                last_row[e, Y] += ahead * math.sin(ego[e, 4])
+                last_row[e, S] += ahead
+                floats[e, 2] = floats[e, 3] = math.nan
         # The car consumes `lead` more queued points from the paths already sent before
         # this one arrives; none while it is still waiting for its first path.
         lead = min(latency, counters[e, 0] * fpc)
