@@ -30,9 +30,10 @@ all, success, mean speed and distance per episode, and lap time from the episode
 complete a lap, which training episodes shorter than a lap never do) and ``model.zip`` at
 the end. With ``--resume`` the newest checkpoint is loaded and training continues to the
 same total of timesteps, checkpointing at the run's ``checkpoint_every``.
-Envs with a native batch (``sdc_gym/HighwayLoopBehavior-v0``, ``sdc_gym/HighwayLoop-v0``)
-run as one batch of ``n_envs`` envs in this process (``sdc_gym.envs.sb3.SB3VecEnv``: no
-subprocesses, one batched policy forward pass per step; env ``i`` is the env seeded
+Envs with a native batch (``sdc_gym/HighwayLoopBehavior-v0``, ``sdc_gym/HighwayLoop-v0``,
+``sdc_gym/TrackLoopBehavior-v0``, ``sdc_gym/TrackLoop-v0``) run as one batch of ``n_envs``
+envs in this process (``sdc_gym.envs.sb3.SB3VecEnv``: no subprocesses, one batched policy
+forward pass per step; env ``i`` is the env seeded
 ``seed + i``, as SB3's own vec envs seed it); others, or ``--vectorize subprocess``, in
 ``n_envs`` subprocesses (default: one per CPU core).
 """

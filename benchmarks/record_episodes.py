@@ -14,7 +14,10 @@ The scenarios cover the FSM agent's styles (with and without Kalman tracking and
 noise), lane keeping, random behavior actions (discrete and continuous, shield on and off,
 rogue and dense traffic, latency, the oval and the original map) and scripted paths that
 provoke every incident kind of the highway (collision, acceleration, jerk, speed, lane,
-off-road), and the track loop's behavior env.
+off-road), and the track loop (:func:`track_scenarios`): the DBW stack agents with manual
+override, the site car, obstacles and the camera, scripted DBW drivers provoking every
+track incident kind (red light included), and the behavior env with random and scripted
+decisions.
 """
 
 from __future__ import annotations
@@ -42,6 +45,8 @@ ORIGINAL_MAP = ROOT.parent / "shared" / "data" / "udacity" / "path_planning" / "
 HIGHWAY = "sdc_gym/HighwayLoop-v0"
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
 TRACK_BEHAVIOR = "sdc_gym/TrackLoopBehavior-v0"
+TRACK = "sdc_gym/TrackLoop-v0"
+ALL_INFO = ("*",)  # digest every info key (sorted)
 PATH_INFO = ("time", "distance", "progress", "laps", "speed", "acceleration", "jerk",
              "raw_acceleration", "raw_jerk", "distance_without_incident", "incidents",
              "lane", "new_incidents", "is_success", "termination_reason")
@@ -81,6 +86,9 @@ def _step_digest(obs: Any, reward: float, terminated: bool, truncated: bool,
     _update(digest, float(reward))
     _update(digest, bool(terminated))
     _update(digest, bool(truncated))
+    if keys == ALL_INFO:
+        _update(digest, info)
+        return digest.hexdigest()
     for key in keys:
         _update(digest, info.get(key))
     if "behavior" in info:
@@ -138,6 +146,62 @@ class ScriptedPath:
             self.s += self.speed(self.t) * 0.02
             new.append(self.road.reference.to_xy(self.s, self.offset(self.t)))
         return np.vstack([previous, *new]) if new else previous
+
+
+class SequenceActions:
+    """A fixed cycle of actions (scripted decisions)."""
+
+    def __init__(self, actions: list[Any]) -> None:
+        self.actions = actions
+        self.reset()
+
+    def reset(self) -> None:
+        self.index = 0
+
+    def act(self, _observation: Any) -> Any:
+        action = self.actions[self.index % len(self.actions)]
+        self.index += 1
+        return np.asarray(action, dtype=np.float32) if isinstance(action, list) else action
+
+
+class TrackPursuit:
+    """A DBW-level track driver: pure pursuit on the track's path at a lateral offset and a
+    speed loop (proportional throttle, brake torque), both profiles of time; ``pump``
+    alternates full throttle and hard braking (acceleration and jerk incidents)."""
+
+    def __init__(self, env: gym.Env, speed: Callable[[float], float],
+                 offset: Callable[[float], float], pump: bool = False) -> None:
+        base = env.unwrapped
+        self.line, self.car = base.track.reference, base.params
+        self.dt = 0.02 * base.steps_per_action
+        self.max_brake = float(env.action_space.high[1])
+        self.speed, self.offset, self.pump = speed, offset, pump
+        self.reset()
+
+    def reset(self) -> None:
+        self.t = 0.0
+        self.s: float | None = None
+
+    def act(self, obs: dict[str, Any]) -> np.ndarray:
+        import math
+
+        x, y, yaw = obs["pose"].astype(np.float64).tolist()
+        speed = float(obs["velocity"][0])
+        guess = self.s if self.s is not None else float(self.line.to_frenet(np.array([x, y]))[0])
+        (self.s,), _ = self.line.project_few([[x, y]], [guess])
+        target = self.line.to_xy(self.s + max(6.0, speed), self.offset(self.t)).tolist()
+        dx, dy = target[0] - x, target[1] - y
+        lateral = -math.sin(yaw) * dx + math.cos(yaw) * dy
+        wheel = math.atan(self.car.wheel_base * 2.0 * lateral / (dx * dx + dy * dy))
+        limit = self.car.steering_wheel_lock
+        steering = min(max(self.car.road_wheel_ratio * wheel, -limit), limit)
+        error = self.speed(self.t) - speed
+        throttle = min(max(0.5 * error, 0.0), 1.0)
+        brake = min(max(-300.0 * error, 0.0), 1000.0)
+        if self.pump and int(self.t / 2.0) % 2:
+            throttle, brake = 0.0, self.max_brake
+        self.t += self.dt
+        return np.array([throttle, brake, steering], dtype=np.float32)
 
 
 # ---------------------------------------------------------------- scenarios
@@ -205,6 +269,71 @@ def scenarios() -> list[dict[str, Any]]:
     add("track_behavior_random_s0", TRACK_BEHAVIOR, ("random", None), 0, 200, episodes=2)
     add("track_behavior_random_s1", TRACK_BEHAVIOR, ("random", None), 1, 150,
         {"action": "continuous"})
+    items.extend(track_scenarios())
+    return items
+
+
+def track_scenarios() -> list[dict[str, Any]]:
+    """The track loop: the DBW stack agents (light sources, rates, followers, manual
+    override, the site car, obstacles), scripted DBW drivers provoking every incident kind
+    (red light, speed, acceleration, jerk, off-road, collision), and the behavior env
+    with random and scripted decisions. Every info key is digested."""
+    items: list[dict[str, Any]] = []
+
+    def add(name: str, env_id: str, agent: Any, seed: int, steps: int,
+            config: dict[str, Any] | None = None, episodes: int = 1) -> None:
+        items.append({"name": name, "env": env_id, "config": config or {}, "agent": agent,
+                      "seed": seed, "steps": steps, "episodes": episodes,
+                      "info_keys": ALL_INFO})
+
+    lights = {"observe_light_states": True}
+    add("track_dbw_ground_truth_s0", TRACK, ("agent", "dbw_ground_truth"), 0, 9000, lights)
+    add("track_dbw_lap_s1", TRACK, ("agent", "dbw_ground_truth"), 1, 40000, lights)
+    add("track_dbw_manual_random_s2", TRACK, ("agent", "dbw_ground_truth"), 2, 8000,
+        {**lights, "manual": {"mode": "random", "interval_s": [8.0, 25.0],
+                              "duration_s": [3.0, 9.0]}}, episodes=2)
+    add("track_dbw_manual_scripted_s3", TRACK, ("agent", "dbw_ground_truth"), 3, 5000,
+        {**lights, "steps_per_action": 2,
+         "manual": {"mode": "scripted", "periods": [[0.0, 2.5], [20.0, 31.3], [60.01, 70.0]]}})
+    add("track_dbw_site_s4", TRACK, ("agent", "dbw_ground_truth"), 4, 12000,
+        {**lights, "track": "site", "laps": 2}, episodes=2)
+    add("track_dbw_seed_rates_s5", TRACK, ("agent", "dbw_seed_rates"), 5, 4000,
+        {**lights, "steps_per_action": 5})
+    add("track_dbw_original_follower_s6", TRACK, ("agent", "dbw_original_follower"), 6, 6000,
+        lights)
+    add("track_dbw_obstacle_s7", TRACK, ("agent", "dbw_ground_truth"), 7, 3000,
+        {**lights, "obstacles": {"positions": [[150.0, 0.5]]}}, episodes=2)
+    add("track_dbw_random_obstacles_s8", TRACK, ("agent", "dbw_ground_truth"), 8, 3000,
+        {**lights, "obstacles": {"count": 4, "max_offset_d": 2.0},
+         "lights": {"green_s": 5.0, "yellow_s": 2.0, "red_s": 12.0}})
+    add("track_dbw_cnn_camera_s9", TRACK, ("agent", "dbw_cnn"), 9, 400,
+        {"start_s": 180.0, "camera": {"enabled": True, "preset": "training"}})
+    add("track_dbw_short_duration_s10", TRACK, ("agent", "dbw_ground_truth"), 10, 3000,
+        {**lights, "max_duration": 25.0, "start_speed": 8.0}, episodes=3)
+    add("track_script_red_speed_s11", TRACK, ("track_speeding", None), 11, 6000,
+        {"max_duration": 100.0})
+    add("track_script_pump_s12", TRACK, ("track_pump", None), 12, 3000,
+        {"incident_rules": {"max_acceleration": 4.0, "max_jerk": 3.0}})
+    add("track_script_off_road_s13", TRACK, ("track_off_road", None), 13, 3000,
+        episodes=2)
+    add("track_script_site_car_s14", TRACK, ("track_pump", None), 14, 2000,
+        {"vehicle": "site", "steps_per_action": 3, "obstacles": {"count": 2}})
+    behavior = TRACK_BEHAVIOR
+    add("track_behavior_random_long_s20", behavior, ("random", None), 20, 1500, episodes=2)
+    add("track_behavior_go_s21", behavior, ("fixed", 0), 21, 700)
+    add("track_behavior_stop_s22", behavior, ("fixed", 3), 22, 300)
+    add("track_behavior_sequence_s23", behavior, ("sequence", [0, 0, 3, 3, 3, 1, 2, 3, 0]),
+        23, 800)
+    add("track_behavior_continuous_s24", behavior, ("random", None), 24, 600,
+        {"action": "continuous", "decision_period_s": 0.5})
+    add("track_behavior_manual_s25", behavior, ("random", None), 25, 700,
+        {"track": {"manual": {"mode": "random", "interval_s": [10.0, 40.0],
+                              "duration_s": [3.0, 8.0]}}})
+    add("track_behavior_frames_s26", behavior, ("random", None), 26, 900,
+        {"decision_period_s": 0.6, "track": {"steps_per_action": 3, "max_duration": 120.0}},
+        episodes=3)
+    add("track_behavior_site_s27", behavior, ("sequence", [0, 0, 0, 3, 1]), 27, 600,
+        {"track": {"track": "site", "laps": 3}}, episodes=2)
     return items
 
 
@@ -226,14 +355,24 @@ def make_agent(spec: tuple[str, Any], env: gym.Env, seed: int) -> Any:
     if kind == "off_road":
         return ScriptedPath(env, lambda t: min(3.0 * t, 15.0),
                             lambda t: 6.0 if t < 3.0 else (4.0 if t < 10.0 else 12.5))
+    if kind == "sequence":
+        return SequenceActions(argument)
+    if kind == "track_speeding":
+        return TrackPursuit(env, lambda t: 16.0, lambda t: 0.0)
+    if kind == "track_pump":
+        return TrackPursuit(env, lambda t: 9.0, lambda t: 0.0, pump=True)
+    if kind == "track_off_road":
+        return TrackPursuit(env, lambda t: min(2.0 * t, 10.0),
+                            lambda t: 0.0 if t < 8.0 else 0.4 * (t - 8.0))
     raise ValueError(f"unknown agent spec {spec!r}")
 
 
 def run(scenario: dict[str, Any]) -> dict[str, Any]:
     env = gym.make(scenario["env"], config=scenario["config"])
     agent = make_agent(tuple(scenario["agent"]), env, scenario["seed"])
-    keys = PATH_INFO if scenario["env"] == HIGHWAY or scenario["env"] == BEHAVIOR else (
-        "time", "distance", "progress", "incidents", "is_success", "termination_reason")
+    keys = scenario.get("info_keys") or (
+        PATH_INFO if scenario["env"] == HIGHWAY or scenario["env"] == BEHAVIOR else (
+            "time", "distance", "progress", "incidents", "is_success", "termination_reason"))
     steps: list[str] = []
     summaries: list[str] = []
     obs, info = env.reset(seed=scenario["seed"])

@@ -24,6 +24,8 @@ _ENVIRONMENTS = {
 _VECTOR_ENTRY_POINTS = {
     "sdc_gym/HighwayLoop-v0": "sdc_gym.envs.highway_vector:make_highway_vector_env",
     "sdc_gym/HighwayLoopBehavior-v0": "sdc_gym.envs.highway_vector:make_behavior_vector_env",
+    "sdc_gym/TrackLoop-v0": "sdc_gym.envs.track_vector:make_track_vector_env",
+    "sdc_gym/TrackLoopBehavior-v0": "sdc_gym.envs.track_vector:make_track_behavior_vector_env",
 }
 
 ENV_IDS: tuple[str, ...] = tuple(_ENVIRONMENTS)

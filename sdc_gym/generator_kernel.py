@@ -23,6 +23,8 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 STATE, NEXT_UINT64, NEXT_UINT32, NEXT_DOUBLE = range(4)
 
 

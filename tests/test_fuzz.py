@@ -81,6 +81,18 @@ def merged(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+@pytest.fixture(scope="module", autouse=True)
+def compiled_kernels() -> None:
+    """Every env and native batch stepped once before the fuzzing: the deadline is for a
+    case, not for numba compiling the kernels (a fresh clone's first run)."""
+    for env_id, config in BASE.items():
+        run_episode(gym.make(env_id, config=config, disable_env_checker=True))
+        envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                            config=config)
+        envs.reset(seed=0)
+        envs.close()
+
+
 def run_episode(env: gym.Env, seed: int = 0) -> None:
     env.action_space.seed(seed)
     env.reset(seed=seed)
@@ -280,7 +292,8 @@ def test_the_track_refuses_bool_complex_object_and_string_actions(action, fragme
 
 
 # ------------------------------------------------------------------------ native batches
-VECTOR_IDS = ["sdc_gym/HighwayLoop-v0", "sdc_gym/HighwayLoopBehavior-v0"]
+VECTOR_IDS = ["sdc_gym/HighwayLoop-v0", "sdc_gym/HighwayLoopBehavior-v0", "sdc_gym/TrackLoop-v0",
+              "sdc_gym/TrackLoopBehavior-v0"]
 
 
 @pytest.mark.parametrize("env_id", VECTOR_IDS)
@@ -306,19 +319,20 @@ def test_generated_configs_to_the_native_batch_are_a_clear_error_or_a_valid_batc
                 _, reward, _, _, _ = envs.step(action)
                 assert np.isfinite(reward).all()
         except ValueError as error:
-            assert "car_count" in str(error) or "spawn" in str(error), error
+            assert any(word in str(error) for word in ("car_count", "spawn", "stop line")), \
+                error
         finally:
             envs.close()
 
     check()
 
 
+@pytest.mark.parametrize("env_id", ["sdc_gym/HighwayLoopBehavior-v0",
+                                    "sdc_gym/TrackLoopBehavior-v0"])
 @pytest.mark.parametrize("action_type", ["discrete", "continuous"])
-def test_generated_batch_actions_step_or_leave_the_batch_bit_identical(action_type):
-    envs = gym.make_vec("sdc_gym/HighwayLoopBehavior-v0", num_envs=2,
-                        vectorization_mode="vector_entry_point",
-                        config={**BASE["sdc_gym/HighwayLoopBehavior-v0"],
-                                "action": action_type})
+def test_generated_batch_actions_step_or_leave_the_batch_bit_identical(env_id, action_type):
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                        config={**BASE[env_id], "action": action_type})
     envs.reset(seed=0)
     expected_shape = (2,) if action_type == "discrete" else (2, 2)
 
@@ -353,4 +367,23 @@ def test_the_path_batch_refuses_bool_and_complex_paths_naming_shape_and_dtype():
             envs.step(bad)
     assert pickle.dumps(envs.unwrapped.world) == before
     envs.step(parked)  # real numbers of the right shape: accepted
+    envs.close()
+
+
+def test_the_track_batch_refuses_bad_commands_before_setting_any():
+    envs = gym.make_vec("sdc_gym/TrackLoop-v0", num_envs=2,
+                        vectorization_mode="vector_entry_point",
+                        config=BASE["sdc_gym/TrackLoop-v0"])
+    envs.reset(seed=0)
+    good = np.array([[0.5, 0.0, 0.0], [0.2, 0.0, 0.1]])
+    before = pickle.dumps(envs.unwrapped.world)
+    for bad, message in ((good.astype(bool), r"actions must be an array of shape \(2, 3\)"),
+                         (good.astype(complex), "got dtype complex128"),
+                         (good[:1], r"got shape \(1, 3\)"),
+                         (np.array([[0.5, 0.0, 0.0], [2.0, 0.0, 0.0]]),
+                          r"action\[0\] throttle = 2.0 is outside")):
+        with pytest.raises(ValueError, match=message):
+            envs.step(bad)
+    assert pickle.dumps(envs.unwrapped.world) == before  # env 0's good command not set
+    envs.step(good.astype(np.int64) * 0)  # real numbers of the right shape: accepted
     envs.close()

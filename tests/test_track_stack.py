@@ -158,15 +158,15 @@ def test_manual_mode_resets_so_that_resuming_has_no_throttle_jump():
     controller = TwistController(SIM, DT)
     for step in range(200):  # a long speed error winds the integral up to its clamp
         controller.control(step * DT, 11.0, 0.0, step * DT, 10.5, step * DT, True)
-    assert controller.pid.integral > 1.0
+    assert controller.pid_integral > 1.0
     assert controller.control(4.0, 11.0, 0.0, 4.0, 10.5, 4.0, False) == (
         controller.control(4.02, 11.0, 0.0, 4.02, 10.5, 4.02, False))
     command = controller.control(4.04, 11.0, 0.0, 4.04, 10.5, 4.04, False)
     assert (command.throttle, command.brake_torque, command.steering) == (0.0, 0.0, 0.0)
-    assert controller.pid.integral == 0.0 and controller.filter.value == 0.0
+    assert controller.pid_integral == 0.0 and controller.filter_value == 0.0
     resumed = controller.control(4.06, 11.0, 0.0, 4.06, 10.5, 4.06, True)
     # Fresh PID (no integral, no derivative kick), the filter rising from 0.
-    a = controller.filter.a
+    a = controller.filter_gain
     assert resumed.throttle == pytest.approx(a * (0.8 * 0.5 + 0.25 * 0.5 * DT))
 
 

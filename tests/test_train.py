@@ -161,3 +161,23 @@ def test_driving_metrics_log_distance_always_and_lap_time_only_with_laps():
     assert logged["driving/lap_time_s"] == [330.5]  # from the episode with a lap only
     assert logged["driving/collision_per_episode"] == [1]
     assert logged["driving/incidents_per_episode"] == [1, 0]
+
+
+def test_the_track_behavior_env_trains_as_one_native_batch(tmp_path):
+    """train.py's default --vectorize batch: the track's decisions of all n_envs envs in one
+    SB3VecEnv (no subprocesses), env i seeded seed + i; PPO reads its rollouts."""
+    from stable_baselines3 import PPO
+
+    from sdc_gym.envs.sb3 import SB3VecEnv
+
+    config = {"env": "sdc_gym/TrackLoopBehavior-v0", "config": {"track": {"max_duration": 20.0}},
+              "seed": 3}
+    vec = train.make_vec_env(config, 4, 3)
+    assert isinstance(vec.venv, SB3VecEnv) and vec.num_envs == 4
+    vec.close()
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump({**config, "algo": "ppo", "eval": {"every": 0}}))
+    model = PPO.load(train.main(["--config", str(path), "--output", str(tmp_path / "ppo"),
+                                 "--n-envs", "4", "--timesteps", "64", "--hp", "n_steps=16",
+                                 "--hp", "batch_size=32", "--no-progress"]))
+    assert model.num_timesteps == 64 and model.n_envs == 4

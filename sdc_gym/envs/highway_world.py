@@ -32,6 +32,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.config import ConfigError, require, resolve_config
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
 from sdc_gym.geometry.collision import first_contacts

@@ -2,7 +2,9 @@
 
 :class:`SB3VecEnv` hands SB3's algorithms (PPO, DQN, A2C, SAC) the batch of
 :class:`~sdc_gym.envs.highway_vector.HighwayLoopBehaviorVectorEnv` (or of the path-level
-:class:`~sdc_gym.envs.highway_vector.HighwayLoopVectorEnv`) with SB3's conventions: an
+:class:`~sdc_gym.envs.highway_vector.HighwayLoopVectorEnv`, or the track's
+:class:`~sdc_gym.envs.track_vector.TrackLoopBehaviorVectorEnv` and
+:class:`~sdc_gym.envs.track_vector.TrackLoopVectorEnv`) with SB3's conventions: an
 ended episode is reset within the step (Gymnasium's ``SAME_STEP`` autoreset), its last
 observation in ``infos[i]["terminal_observation"]``, ``infos[i]["TimeLimit.truncated"]``
 for truncations, ``dones`` = terminated or truncated, and the single env's ``summary`` and
@@ -27,10 +29,13 @@ from sdc_gym.envs.highway_vector import (
     HighwayLoopVectorEnv,
     env_info,
 )
+from sdc_gym.envs.track_vector import TrackLoopBehaviorVectorEnv, TrackLoopVectorEnv
 
 VECTOR_ENVS = {
     "sdc_gym/HighwayLoopBehavior-v0": HighwayLoopBehaviorVectorEnv,
     "sdc_gym/HighwayLoop-v0": HighwayLoopVectorEnv,
+    "sdc_gym/TrackLoopBehavior-v0": TrackLoopBehaviorVectorEnv,
+    "sdc_gym/TrackLoop-v0": TrackLoopVectorEnv,
 }
 """The env ids with a native batch, and its class."""
 

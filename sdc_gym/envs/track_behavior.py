@@ -6,23 +6,12 @@ from typing import Any, ClassVar
 
 import gymnasium as gym
 import numpy as np
-from gymnasium import spaces
 from numpy.typing import NDArray
 
-from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.track_behavior_world import ACTION_TYPES, BEHAVIOR_DEFAULTS, TrackBehaviorWorld
 from sdc_gym.envs.track_loop import TrackLoopEnv
-from sdc_gym.stack.track.dbw_stack import dbw_stack_for_env
-from sdc_gym.stack.track.decisions import (
-    TRACK_ACTION_NAMES,
-    TrackDecisionBehavior,
-    TrackFeatures,
-    action_decision,
-)
-from sdc_gym.stack.track.detector import GroundTruthLightSource
-from sdc_gym.validation.env_configs import check_track_behavior_config
-from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
-ACTION_TYPES = ("discrete", "continuous")
+__all__ = ["ACTION_TYPES", "TrackLoopBehaviorEnv"]
 
 
 class TrackLoopBehaviorEnv(gym.Env):
@@ -76,50 +65,32 @@ class TrackLoopBehaviorEnv(gym.Env):
     ## Version History
 
     * v0: initial version.
+
+    ``gym.make_vec("sdc_gym/TrackLoopBehavior-v0", num_envs=E,
+    vectorization_mode="vector_entry_point")`` runs E of these as one batch
+    (:class:`~sdc_gym.envs.track_vector.TrackLoopBehaviorVectorEnv`); this env is its batch
+    of one (:class:`~sdc_gym.envs.track_behavior_world.TrackBehaviorWorld`).
     """
 
     metadata: ClassVar[dict[str, Any]] = {"render_modes": ["human", "rgb_array"],
                                           "render_fps": 1}
-    DEFAULT_CONFIG: ClassVar[dict[str, Any]] = {
-        "track": {},                  # TrackLoop-v0 config
-        "decision_period_s": 1.0,     # s between decisions
-        "action": "discrete",         # "discrete" (Discrete(4)) or "continuous" (Box(2))
-    }
+    DEFAULT_CONFIG: ClassVar[dict[str, Any]] = BEHAVIOR_DEFAULTS
 
     def __init__(self, config: dict[str, Any] | None = None,
                  render_mode: str | None = None) -> None:
-        owner = "TrackLoopBehavior-v0"
-        self.config = cfg = resolve_config(self.DEFAULT_CONFIG, config, owner=owner)
-        require(isinstance(cfg["track"], dict), owner, "track",
-                "a mapping of TrackLoop-v0 config keys", cfg["track"])
-        require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
-                cfg["action"])
-        check_track_behavior_config(cfg, owner)  # the track's step first: it is used here
-        step_s = PHYSICS_DT * cfg["track"].get("steps_per_action", 1)
-        ticks = cfg["decision_period_s"] / step_s
-        if not (cfg["decision_period_s"] > 0 and round(ticks) >= 1
-                and abs(ticks - round(ticks)) < 1e-9):
-            raise ConfigError(f"{owner}: decision_period_s must be a positive multiple of "
-                              f"the track env's step ({step_s:g} s), got "
-                              f"{cfg['decision_period_s']!r}")
-        self.ticks_per_decision = round(ticks)
-        # Progress worth about 1 per decision at the limit (the track env's is 1 per step),
-        # incident penalties unscaled.
-        track_config = {"reward_progress": 1.0 / self.ticks_per_decision, **cfg["track"],
-                        "observe_light_states": True}
-        self.inner = TrackLoopEnv(track_config, render_mode=render_mode)
+        self.batch = TrackBehaviorWorld(config, envs=1)
+        self.config = self.batch.config
+        self.ticks_per_decision = self.batch.ticks_per_decision
+        # The TrackLoop-v0 view of the same world (its attributes, summary and render).
+        self.inner = TrackLoopEnv.over(self.batch.world, render_mode=render_mode)
         self.render_mode = render_mode
-        self.continuous = cfg["action"] == "continuous"
-        self.features = TrackFeatures(abs(self.inner.params.decel_limit))
-        self.behavior = TrackDecisionBehavior(self.features, continuous=self.continuous)
-        self.stack = dbw_stack_for_env(self.inner, GroundTruthLightSource(),
-                                       name="behavior_env_stack", behavior=self.behavior)
-        self.observation_space = self.features.space
-        self.action_space: spaces.Space[Any] = (
-            spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32) if self.continuous
-            else spaces.Discrete(len(TRACK_ACTION_NAMES)))
-        self.feature_names = list(TrackFeatures.names)
-        self._inner_obs: dict[str, Any] | None = None
+        self.continuous = self.batch.continuous
+        self.features = self.batch.features
+        self.observation_space = self.batch.observation_space
+        self.action_space = self.batch.action_space
+        self.feature_names = list(self.features.names)
+        self._active = np.ones(1, dtype=bool)
+        self._ready = False
 
     @property
     def track(self) -> Any:
@@ -129,31 +100,30 @@ class TrackLoopBehaviorEnv(gym.Env):
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32],
                                                               dict[str, Any]]:
         super().reset(seed=seed)
-        self._inner_obs, info = self.inner.reset(seed=seed, options=options)
-        self.stack.reset()
+        batch = self.batch
+        batch.reset_at(0, self.np_random)
+        self._ready = True
+        info = batch.world.info(0, [], final=False)
         info["behavior"] = {"decision": ""}
-        return self.behavior.observe(self.stack.situation(self._inner_obs)), info
+        return batch.observations[0].copy(), info
 
     def step(self, action: Any) -> tuple[NDArray[np.float32], float, bool, bool,
                                          dict[str, Any]]:
-        if self._inner_obs is None:
+        if not self._ready:
             raise RuntimeError("call reset() before step()")
-        # Validate now, not at the next updater cycle.
-        action_decision(action, self.stack.situation(self._inner_obs), self.continuous)
-        self.behavior.action = action
-        total = 0.0
-        terminated = truncated = False
-        info: dict[str, Any] = {}
-        for _ in range(self.ticks_per_decision):
-            command = self.stack.act(self._inner_obs)
-            self._inner_obs, reward, terminated, truncated, info = self.inner.step(command)
-            total += reward
-            if terminated or truncated:
-                break
-        decision = self.behavior.decision
-        info["behavior"] = {"decision": decision.mode if decision else ""}
-        observation = self.behavior.observe(self.stack.situation(self._inner_obs))
-        return observation, total, terminated, truncated, info
+        batch = self.batch
+        batch.set_actions((action,), (0,))  # checked now, not at the next updater cycle
+        rewards, incidents = batch.step(self._active)
+        terminated = bool(batch.world.state.terminated[0])
+        truncated = bool(batch.world.state.truncated[0])
+        if self.render_mode == "human":
+            self.inner.render()
+        info = batch.info(0, incidents[0], final=terminated or truncated)
+        return batch.observations[0].copy(), float(rewards[0]), terminated, truncated, info
+
+    def summary(self) -> dict[str, Any]:
+        """The episode's summary so far (``info["summary"]`` at its end)."""
+        return self.batch.world.summary(0)
 
     def render(self) -> NDArray[np.uint8] | None:
         return self.inner.render()

@@ -21,6 +21,8 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 _FROM_SIZES = np.zeros((0, 0))  # _near_pairs: the reach from the cars' sizes
 
 # m: slack of the sieve's test. Its projections differ from boxes_overlap's by rounding

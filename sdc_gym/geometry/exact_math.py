@@ -17,7 +17,13 @@ may differ in the last bit.
 
 The array functions (:func:`hypot`, :func:`atan2`, :func:`exp`, :func:`power`) apply them
 elementwise in one compiled loop. :func:`py_mod` is Python's float ``%`` with a shortcut
-for the usual case of a value already in range.
+for the usual case of a value already in range. The track's layers add the rest of what
+Python computes differently from a compiled default: :func:`py_remainder`
+(``math.remainder``, which numba lacks), :func:`py_min` / :func:`py_max` (Python's
+``min`` / ``max`` of two floats: the first argument on ties, so ``max(-0.0, 0.0)`` is
+-0.0) and :func:`np_minimum` / :func:`np_maximum` (numpy's, NaN propagating). numba
+neither reorders nor fuses float arithmetic without ``fastmath``, so everything else a
+kernel computes is what Python computes.
 """
 
 from __future__ import annotations
@@ -27,6 +33,8 @@ import math
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
+
+from sdc_gym.kernel_compiler import kernel
 
 FloatArray = NDArray[np.float64]
 
@@ -169,3 +177,50 @@ def py_mod(x: float, m: float) -> float:
     if 0.0 < x < m:
         return x
     return x % m
+
+
+@kernel
+def py_remainder(x: float, y: float) -> float:
+    """``math.remainder(x, y)``: the IEEE 754 remainder, exact (CPython's ``m_remainder``:
+    ``x - n y`` with ``n`` the integer nearest ``x / y``, ties to even)."""
+    if math.isnan(x) or math.isnan(y):
+        return math.nan
+    if math.isinf(x) or y == 0.0:
+        return math.nan
+    if math.isinf(y):
+        return x
+    absx = abs(x)
+    absy = abs(y)
+    m = absx % absy  # fmod: both are positive
+    c = absy - m
+    if m < c:
+        r = m
+    elif m > c:
+        r = -c
+    else:  # half way: the even multiple
+        r = m - 2.0 * ((0.5 * (absx - m)) % absy)
+    return math.copysign(1.0, x) * r
+
+
+@kernel
+def py_max(a: float, b: float) -> float:
+    """Python's ``max(a, b)``: ``a`` unless ``b > a`` (so ``max(-0.0, 0.0)`` is -0.0)."""
+    return b if b > a else a
+
+
+@kernel
+def py_min(a: float, b: float) -> float:
+    """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
+    return b if b < a else a
+
+
+@kernel
+def np_maximum(a: float, b: float) -> float:
+    """``np.maximum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
+    return a if (a >= b or a != a) else b
+
+
+@kernel
+def np_minimum(a: float, b: float) -> float:
+    """``np.minimum(a, b)`` for two floats (NaN propagates; ``a`` on ties)."""
+    return a if (a <= b or a != a) else b

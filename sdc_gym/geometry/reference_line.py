@@ -38,7 +38,7 @@ from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SE
 from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
 from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
 from sdc_gym.geometry.projection_kernel import NEWTON_TOLERANCE_M as _NEWTON_TOLERANCE_M
-from sdc_gym.geometry.projection_kernel import newton_points
+from sdc_gym.geometry.projection_kernel import LineGeometry, project_points
 
 FloatArray = NDArray[np.float64]
 
@@ -141,9 +141,11 @@ class ReferenceLine:
         # ...), for the evaluations in real arithmetic (_newton_arrays, line_frames).
         xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
         self._coef_xy = np.ascontiguousarray(xy_rows)
-        self._projection_line = np.array([self._knot_step, self._inverse_step,
-                                          self._segments, coarse_length, self._param_scale])
         self._total_param = coarse_length
+        self._geometry = LineGeometry(self._coef_xy, float(self._knot_step),
+                                      float(self._inverse_step), int(self._segments - 1),
+                                      float(self._total_param), float(self._param_scale),
+                                      float(self.length))
 
     # ------------------------------------------------------------------ evaluation
     def _param(self, s: ArrayLike) -> FloatArray:
@@ -363,6 +365,11 @@ class ReferenceLine:
         s, d = self.project(xy[:, 0], xy[:, 1], s_guesses)
         return s.tolist(), d.tolist()
 
+    def geometry(self) -> LineGeometry:
+        """The line as the projection kernels take it (see
+        :mod:`~sdc_gym.geometry.projection_kernel`)."""
+        return self._geometry
+
     def _newton_arrays(self, x: FloatArray, y: FloatArray, s0: FloatArray,
                        count_lost: bool = False) -> Any:
         """Newton projections of points from their guessed s: (s, d, how far s moved),
@@ -370,7 +377,7 @@ class ReferenceLine:
 
         Every point iterates until its own step is below the tolerance (at most
         ``_NEWTON_ITERATIONS``), on the coefficients as floats (``_coef_xy``), in one
-        compiled pass (:func:`~sdc_gym.geometry.projection_kernel.newton_points`).
+        compiled pass (:func:`~sdc_gym.geometry.projection_kernel.project_points`).
         """
         shape = np.shape(x)
         if np.shape(y) == shape == np.shape(s0):
@@ -380,6 +387,6 @@ class ReferenceLine:
             flat = [np.ascontiguousarray(np.broadcast_to(a, shape), dtype=np.float64).ravel()
                     for a in (x, y, s0)]
         out = np.empty((3, flat[0].size))
-        lost = newton_points(self._coef_xy, self._projection_line, self.length, *flat, *out)
+        lost = project_points(*self._geometry, *flat, *out)
         result = out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape)
         return (*result, lost) if count_lost else result

@@ -29,8 +29,9 @@ red line waits a noticeable time, short enough that a 7 km lap past 8 lights mee
 three states. Cycle 23 s.
 
 Cost. ``step`` adds ``dt`` and compares with the cached time of the next change of any
-light; the states are recomputed (a few numpy operations on ``k`` numbers) only when a
-light changes, so a 50 Hz step costs well under a microsecond.
+light; the states are recomputed only when a light changes. The phase arithmetic is the
+numba kernel of :mod:`sdc_gym.lights.light_kernel` (the track world steps every env's
+lights with it); :class:`TrafficLights` is its batch of one.
 """
 
 from __future__ import annotations
@@ -46,6 +47,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.config import ConfigError, resolve_config
+from sdc_gym.lights.light_kernel import LightSchedule, refresh_lights, states_at, times_to_change
 
 
 class LightState(IntEnum):
@@ -67,9 +69,6 @@ DEFAULT_GREEN_S = 10.0
 DEFAULT_YELLOW_S = 3.0  # ITE: 1 s reaction + 11.1 m/s / (2 x 3.05 m/s^2) = 2.8 s -> 3 s
 DEFAULT_RED_S = 10.0
 
-# The cached "next change" time is set this far early so that rounding of (t + offset) mod
-# cycle can never make ``states`` differ from ``state_at(time_s)`` near a phase boundary.
-_CHANGE_GUARD_S = 1e-9
 
 LIGHTS_DEFAULTS: dict[str, Any] = {
     "green_s": DEFAULT_GREEN_S,  # s, duration of green
@@ -185,8 +184,19 @@ class TrafficLights:
         if len(entries) != self.count:
             raise ValueError(f"script must have one entry per light ({self.count}), "
                              f"got {len(entries)}")
-        self._scripts = {light: parsed for light, entry in enumerate(entries)
-                         if (parsed := _parse_script(entry, light)) is not None}
+        scripts = {light: parsed for light, entry in enumerate(entries)
+                   if (parsed := _parse_script(entry, light)) is not None}
+        self.scripted = len(scripts)
+        longest = max((len(times) for times, _ in scripts.values()), default=0)
+        script_times = np.zeros((self.count, longest))
+        script_states = np.zeros((self.count, longest), dtype=np.int8)
+        script_length = np.zeros(self.count, dtype=np.int64)
+        for light, (times, states) in scripts.items():
+            script_length[light] = len(times)
+            script_times[light, :len(times)] = times
+            script_states[light, :len(times)] = states
+        self.schedule = LightSchedule(self._green_end, self._yellow_end, self._cycle,
+                                      script_length, script_times, script_states)
         self._offsets = np.zeros(self.count) if self._fixed_offsets is None else (
             self._fixed_offsets.copy())
         self._time_s = 0.0
@@ -213,14 +223,21 @@ class TrafficLights:
 
         ``rng`` may be None only when the offsets are fixed (or every light is scripted).
         """
-        if self._fixed_offsets is None and len(self._scripts) < self.count:
-            if rng is None:
-                raise ValueError("TrafficLights.reset needs an rng to draw phase offsets "
-                                 "(or give fixed offsets_s)")
-            self._offsets = rng.uniform(0.0, 1.0, self.count) * self._cycle
+        self._offsets = self.draw_offsets(rng)
         self._time_s = 0.0
         self._refresh()
         return self._states
+
+    def draw_offsets(self, rng: np.random.Generator | None) -> NDArray[np.float64]:
+        """The phase offsets (s) of an episode: drawn uniformly over each cycle from
+        ``rng``, or the fixed ones (what :meth:`reset` takes; the track world draws each
+        env's with it)."""
+        if self._fixed_offsets is None and self.scripted < self.count:
+            if rng is None:
+                raise ValueError("TrafficLights.reset needs an rng to draw phase offsets "
+                                 "(or give fixed offsets_s)")
+            return rng.uniform(0.0, 1.0, self.count) * self._cycle
+        return self._offsets.copy()
 
     def step(self, dt: float) -> NDArray[np.int8]:
         """Advance the clock by ``dt`` s (>= 0); returns :attr:`states`."""
@@ -252,37 +269,21 @@ class TrafficLights:
         return self.time_to_change_at(self._time_s)
 
     def _refresh(self) -> None:
-        states = self.state_at(self._time_s)
+        states = np.empty(self.count, dtype=np.int8)
+        self._next_change_s = refresh_lights(self.schedule, self._offsets, self._time_s, states)
         states.flags.writeable = False
         self._states = states
-        soonest = float(self.time_to_change_at(self._time_s).min(initial=math.inf))
-        self._next_change_s = self._time_s + soonest - _CHANGE_GUARD_S
 
     # --- pure functions of time -----------------------------------------------------------
 
-    def _phase(self, time_s: float) -> NDArray[np.float64]:
-        return np.mod(time_s + self._offsets, self._cycle)
-
     def state_at(self, time_s: float) -> NDArray[np.int8]:
         """States at ``time_s`` (s since reset) with the current offsets; int8 (k,), new array."""
-        phase = self._phase(time_s)
-        # GREEN = 2, YELLOW = 1, RED = 0: count the boundaries still ahead in the cycle.
-        states = ((phase < self._green_end).astype(np.int8)
-                  + (phase < self._yellow_end).astype(np.int8))
-        for light, (times, script_states) in self._scripts.items():
-            row = max(int(np.searchsorted(times, time_s, side="right")) - 1, 0)
-            states[light] = script_states[row]
+        states = np.empty(self.count, dtype=np.int8)
+        states_at(self.schedule, self._offsets, float(time_s), states)
         return states
 
     def time_to_change_at(self, time_s: float) -> NDArray[np.float64]:
         """s from ``time_s`` until each light's state next changes; float64 (k,)."""
-        phase = self._phase(time_s)
-        boundary = np.where(phase < self._green_end, self._green_end,
-                            np.where(phase < self._yellow_end, self._yellow_end, self._cycle))
-        remaining = boundary - phase
-        for light, (times, script_states) in self._scripts.items():
-            row = max(int(np.searchsorted(times, time_s, side="right")) - 1, 0)
-            # The next entry that changes the state (a repeated state is no change).
-            changes = (times > time_s) & (script_states != script_states[row])
-            remaining[light] = times[changes][0] - time_s if changes.any() else math.inf
+        remaining = np.empty(self.count)
+        times_to_change(self.schedule, self._offsets, float(time_s), remaining)
         return remaining

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.geometry.exact_math import py_hypot, py_mod
 
 # Rows of the float state.

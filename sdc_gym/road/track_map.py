@@ -27,7 +27,6 @@ is its projection onto the reference line. The original simulator's light poles 
 
 from __future__ import annotations
 
-import bisect
 import math
 import os
 from dataclasses import dataclass, field
@@ -39,6 +38,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.highway_map import MapFormatError
+from sdc_gym.road.stop_line_kernel import next_stop_line
 from sdc_gym.units import KMH_TO_MPS
 from sdc_gym.validation.road_geometry import check_loop_points, check_reference_line
 from sdc_gym.validation.text_files import read_text, read_yaml
@@ -159,6 +159,9 @@ class TrackMap:
     # Stop lines sorted by s, for next_stop_line (a bisection per physics step).
     _sorted_s: list[float] = field(init=False, repr=False, compare=False)
     _sorted_index: list[int] = field(init=False, repr=False, compare=False)
+    # The same as arrays, for the kernels (sdc_gym.road.stop_line_kernel).
+    stop_lines_sorted_s: NDArray[np.float64] = field(init=False, repr=False, compare=False)
+    stop_lines_sorted_index: NDArray[np.int64] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         k = len(self.stop_line_s)
@@ -176,6 +179,9 @@ class TrackMap:
         order = np.argsort(self.stop_line_s, kind="stable")
         object.__setattr__(self, "_sorted_s", [float(self.stop_line_s[i]) for i in order])
         object.__setattr__(self, "_sorted_index", [int(i) for i in order])
+        object.__setattr__(self, "stop_lines_sorted_s", np.array(self._sorted_s, dtype=np.float64))
+        object.__setattr__(self, "stop_lines_sorted_index",
+                           np.array(self._sorted_index, dtype=np.int64))
 
     @property
     def length(self) -> float:
@@ -191,16 +197,13 @@ class TrackMap:
 
         Distances are in [0, length): a stop line exactly at ``s`` is 0 m ahead, one just
         passed is almost a lap ahead; the search wraps around the loop end. Without lights:
-        ``(-1, inf)``. A scalar bisection on Python floats (it runs every physics step).
+        ``(-1, inf)``. (:func:`~sdc_gym.road.stop_line_kernel.next_stop_line`.)
         """
         if not self._sorted_s:
             return -1, math.inf
-        length = self.reference.length
-        s = s % length
-        i = bisect.bisect_left(self._sorted_s, s)
-        if i == len(self._sorted_s):
-            return self._sorted_index[0], self._sorted_s[0] - s + length
-        return self._sorted_index[i], self._sorted_s[i] - s
+        line, ahead = next_stop_line(self.stop_lines_sorted_s, self.stop_lines_sorted_index,
+                                     self.reference.length, float(s))
+        return int(line), float(ahead)
 
     def next_stop_lines(self, s: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.float64]]:
         """:meth:`next_stop_line` vectorized over an array of ``s`` (index -1, inf if none)."""

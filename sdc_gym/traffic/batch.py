@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.generator_kernel import generator_pointers
 from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap

@@ -28,6 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.geometry.exact_math import py_mod
 
 

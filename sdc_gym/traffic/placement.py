@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym import generator_kernel as draw
 from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.traffic.config import MPH

@@ -77,7 +77,9 @@ The interface is plain numbers in and a plain state out (:meth:`DBWVehicle.step`
 any driver can sit in front of it: the env, the built-in human, or a bridge speaking the
 original simulator's protocol (``docs/track_vehicle.md``).
 
-Cost: one step is plain scalar Python (no numpy), a few microseconds.
+Implementation: the step is the numba kernel :func:`sdc_gym.vehicle.dbw_kernel.step_vehicle`
+(over a batch of cars: the track world steps every env's car with it);
+:class:`DBWVehicle` is its batch of one.
 """
 
 from __future__ import annotations
@@ -85,6 +87,32 @@ from __future__ import annotations
 import dataclasses
 import math
 from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sdc_gym.vehicle.dbw_kernel import (
+    CONSTANTS_SIZE,
+    CREEP0,
+    CREEP_SLOPE,
+    CREEP_SPEED,
+    CURVATURE_PER_SWA,
+    DRAG,
+    FORCE_MAX,
+    INVERSE_RADIUS,
+    LINEAR_DRAG,
+    MASS,
+    MAX_BRAKE_FORCE,
+    MAX_SWA,
+    POWER_MAX,
+    REST_PUSH,
+    REST_SPEED,
+    ROLLING,
+    STATE_SIZE,
+    WHEEL_BASE,
+    reset_vehicle,
+    step_vehicle,
+)
 
 PHYSICS_DT = 0.02
 """Physics step of the track loop, s (50 Hz, the original drive-by-wire loop rate)."""
@@ -95,15 +123,52 @@ GRAVITY = 9.81
 FUEL_KG_PER_GALLON = 2.858
 """Mass of a US gallon of gasoline, kg (the reference stack's GAS_DENSITY)."""
 
-_TWO_PI = 2.0 * math.pi
-# Below this half-turn per step (rad) sin(h)/h uses its series: no cancellation.
-_SMALL_HALF_TURN = 1e-4
-
 
 def _is_real(value: object) -> bool:
     """A real number (int or float; bools are not numbers here)."""
     return isinstance(value, int | float) and not isinstance(value, bool)
 
+
+def vehicle_constants(params: VehicleParameters) -> NDArray[np.float64]:
+    """The step's constants for a car model (a float64 vector, see the module)."""
+    c = np.zeros(CONSTANTS_SIZE)
+    c[MASS] = params.total_mass
+    c[INVERSE_RADIUS] = 1.0 / params.wheel_radius
+    c[MAX_BRAKE_FORCE] = params.max_brake_force
+    c[ROLLING] = params.rolling_force
+    c[DRAG] = params.drag_coefficient
+    c[LINEAR_DRAG] = params.linear_drag
+    c[REST_SPEED] = params.rest_speed
+    creep0 = params.creep_force_at_rest
+    c[CREEP0] = creep0
+    # At rest the drive force must beat the brake plus this: the creep beyond rolling
+    # resistance is creep_hold_torque / wheel_radius (computed like the brake force so
+    # that a brake torque equal to the holding torque ties exactly); without creep the
+    # rolling resistance alone holds.
+    c[REST_PUSH] = (params.creep_hold_torque * c[INVERSE_RADIUS] if creep0
+                    else -params.rolling_force)
+    c[CREEP_SLOPE] = creep0 / params.creep_speed
+    c[CREEP_SPEED] = params.creep_speed if creep0 else 0.0
+    c[FORCE_MAX] = params.max_drive_force
+    c[POWER_MAX] = params.max_drive_power
+    c[MAX_SWA] = params.steering_wheel_lock
+    c[CURVATURE_PER_SWA] = 1.0 / params.road_wheel_ratio
+    c[WHEEL_BASE] = params.wheel_base
+    return c
+
+
+def _lag_gain(time_constant: float, dt: float) -> float:
+    """Exact first-order-lag gain for one step: 1 means no lag."""
+    if time_constant <= 0.0:
+        return 1.0
+    return -math.expm1(-dt / time_constant)
+
+
+def lag_gains(params: VehicleParameters, dt: float) -> NDArray[np.float64]:
+    """(throttle, brake, steering) lag gains for steps of ``dt`` s."""
+    return np.array([_lag_gain(params.throttle_time_constant, dt),
+                     _lag_gain(params.brake_time_constant, dt),
+                     _lag_gain(params.steering_time_constant, dt)])
 
 @dataclass(frozen=True)
 class VehicleParameters:
@@ -421,13 +486,6 @@ class VehicleState:
         return dataclasses.replace(self)
 
 
-def _lag_gain(time_constant: float, dt: float) -> float:
-    """Exact first-order-lag gain for one step: 1 means no lag."""
-    if time_constant <= 0.0:
-        return 1.0
-    return -math.expm1(-dt / time_constant)
-
-
 class DBWVehicle:
     """One drive-by-wire car; see the module docstring for the model.
 
@@ -438,7 +496,8 @@ class DBWVehicle:
         state = car.step(throttle, brake_torque, steering_wheel_angle)  # PHYSICS_DT
 
     :meth:`step` mutates and returns :attr:`state`; take :meth:`VehicleState.copy` to keep
-    a snapshot.
+    a snapshot. The physics is :func:`~sdc_gym.vehicle.dbw_kernel.step_vehicle`, the
+    kernel the track world steps every env's car with: this class is its batch of one.
     """
 
     def __init__(self, params: VehicleParameters = SIM_VEHICLE) -> None:
@@ -446,30 +505,12 @@ class DBWVehicle:
             raise TypeError(f"params must be VehicleParameters, got {type(params).__name__}")
         self.params = params
         self.state = VehicleState()
-        # Hot-path constants as plain attributes (no property calls inside step()).
-        self._mass = params.total_mass
-        self._inverse_radius = 1.0 / params.wheel_radius
-        self._max_brake_force = params.max_brake_force
-        self._rolling = params.rolling_force
-        self._drag = params.drag_coefficient
-        self._linear_drag = params.linear_drag
-        self._rest_speed = params.rest_speed
-        self._creep0 = params.creep_force_at_rest
-        # At rest the drive force must beat the brake plus this: the creep beyond rolling
-        # resistance is creep_hold_torque / wheel_radius (computed like the brake force so
-        # that a brake torque equal to the holding torque ties exactly); without creep the
-        # rolling resistance alone holds.
-        self._rest_push = (params.creep_hold_torque * self._inverse_radius if self._creep0
-                           else -self._rolling)
-        self._creep_slope = self._creep0 / params.creep_speed
-        self._creep_speed = params.creep_speed if self._creep0 else 0.0
-        self._force_max = params.max_drive_force
-        self._power_max = params.max_drive_power
-        self._max_swa = params.steering_wheel_lock
-        self._curvature_per_swa = 1.0 / params.road_wheel_ratio
+        self._constants = vehicle_constants(params)
+        self._max_swa = float(self._constants[MAX_SWA])
         self._wheel_base = params.wheel_base
+        self._row = np.zeros((1, STATE_SIZE))
         self._lag_dt = math.nan
-        self._gains = (1.0, 1.0, 1.0)
+        self._gains = np.ones(3)
 
     # ------------------------------------------------------------------ set-up
     def reset(
@@ -496,26 +537,17 @@ class DBWVehicle:
         if speed < 0.0:
             raise ValueError(f"DBWVehicle.reset: speed must be >= 0 m/s (no reverse), "
                              f"got {speed!r}")
-        swa = min(max(float(steering_wheel_angle), -self._max_swa), self._max_swa)
-        curvature = math.tan(swa * self._curvature_per_swa) / self._wheel_base
-        self.state = VehicleState(
-            x=float(x), y=float(y), yaw=math.remainder(float(yaw), _TWO_PI),
-            speed=float(speed), yaw_rate=speed * curvature,
-            lateral_acceleration=speed * speed * curvature,
-            throttle=min(max(float(throttle), 0.0), 1.0),
-            brake_torque=max(float(brake_torque), 0.0),
-            steering_wheel_angle=swa, road_wheel_angle=swa * self._curvature_per_swa,
-        )
+        reset_vehicle(self._constants, self._row, 0, float(x), float(y), float(yaw),
+                      float(speed), float(throttle), float(brake_torque),
+                      float(steering_wheel_angle))
+        self.state = VehicleState(*self._row[0].tolist())
         return self.state
 
     def _set_dt(self, dt: float) -> None:
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"DBWVehicle.step: dt must be a finite number > 0 s, got {dt!r}")
-        p = self.params
         self._lag_dt = dt
-        self._gains = (_lag_gain(p.throttle_time_constant, dt),
-                       _lag_gain(p.brake_time_constant, dt),
-                       _lag_gain(p.steering_time_constant, dt))
+        self._gains = lag_gains(self.params, dt)
 
     # ------------------------------------------------------------------ physics
     def step(
@@ -541,79 +573,15 @@ class DBWVehicle:
                              f"{throttle!r}, brake_torque {brake_torque!r}, "
                              f"steering_wheel_angle {steering_wheel_angle!r}")
         st = self.state
-        gain_throttle, gain_brake, gain_steer = self._gains
-
-        # Actuators: clamp the command, then the first-order lag (gain 1: no lag).
-        throttle = 0.0 if throttle < 0.0 else (1.0 if throttle > 1.0 else throttle)
-        brake_torque = brake_torque if brake_torque > 0.0 else 0.0
-        max_swa = self._max_swa
-        swa = -max_swa if steering_wheel_angle < -max_swa else (
-            max_swa if steering_wheel_angle > max_swa else steering_wheel_angle)
-        if gain_throttle < 1.0:
-            throttle = st.throttle + gain_throttle * (throttle - st.throttle)
-        if gain_brake < 1.0:
-            brake_torque = st.brake_torque + gain_brake * (brake_torque - st.brake_torque)
-        if gain_steer < 1.0:
-            swa = st.steering_wheel_angle + gain_steer * (swa - st.steering_wheel_angle)
-
-        # Longitudinal force balance.
-        v0 = st.speed
-        engine = self._force_max
-        if v0 * engine > self._power_max:
-            engine = self._power_max / v0
-        drive = throttle * engine
-        if v0 < self._creep_speed:
-            drive += self._creep0 - self._creep_slope * v0
-        brake = brake_torque * self._inverse_radius
-        if brake > self._max_brake_force:
-            brake = self._max_brake_force
-        mass = self._mass
-        if v0 <= 0.0:
-            # At rest brake and rolling resistance are static friction: pull away only
-            # when the drive force overcomes them (ties hold).
-            net = throttle * engine + self._rest_push - brake
-            if net > 0.0:
-                v1 = net / mass * dt
-                ds = 0.5 * v1 * dt
-            else:
-                v1 = 0.0
-                ds = 0.0
-        else:
-            accel = (drive - brake - self._rolling - self._linear_drag * v0
-                     - self._drag * v0 * v0) / mass
-            v1 = v0 + accel * dt
-            if v1 < 0.0:
-                # Stopped inside the step: exact distance to rest, no reversing.
-                ds = 0.5 * v0 * (v0 / -accel)
-                v1 = 0.0
-            else:
-                ds = 0.5 * (v0 + v1) * dt
-                if v1 < self._rest_speed and drive <= 0.0:
-                    v1 = 0.0  # coasting this slowly, the car comes to rest
-
-        # Lateral: kinematic bicycle about the rear axle, exact arc over the step.
-        road_wheel = swa * self._curvature_per_swa
-        curvature = math.tan(road_wheel) / self._wheel_base
-        half_turn = 0.5 * curvature * ds
-        if -_SMALL_HALF_TURN < half_turn < _SMALL_HALF_TURN:
-            chord = ds * (1.0 - half_turn * half_turn / 6.0)
-        else:
-            chord = ds * math.sin(half_turn) / half_turn
-        yaw = st.yaw
-        mid_heading = yaw + half_turn
-        st.x += chord * math.cos(mid_heading)
-        st.y += chord * math.sin(mid_heading)
-        st.yaw = math.remainder(yaw + 2.0 * half_turn, _TWO_PI)
-
-        st.speed = v1
-        st.acceleration = (v1 - v0) / dt
-        st.yaw_rate = v1 * curvature
-        st.lateral_acceleration = v1 * v1 * curvature
-        st.throttle = throttle
-        st.brake_torque = brake_torque
-        st.steering_wheel_angle = swa
-        st.road_wheel_angle = road_wheel
-        st.odometer += ds
+        row = self._row
+        row[0] = (st.x, st.y, st.yaw, st.speed, st.yaw_rate, st.acceleration,
+                  st.lateral_acceleration, st.throttle, st.brake_torque,
+                  st.steering_wheel_angle, st.road_wheel_angle, st.odometer)
+        step_vehicle(self._constants, self._gains, row, 0, float(throttle), float(brake_torque),
+                     float(steering_wheel_angle), float(dt))
+        (st.x, st.y, st.yaw, st.speed, st.yaw_rate, st.acceleration, st.lateral_acceleration,
+         st.throttle, st.brake_torque, st.steering_wheel_angle, st.road_wheel_angle,
+         st.odometer) = row[0].tolist()
         return st
 
     # ------------------------------------------------------------------ body points

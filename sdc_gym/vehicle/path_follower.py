@@ -18,6 +18,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.vehicle.perfect_controller import adopted_start, frames_of_motion
 
 FloatArray = NDArray[np.float64]

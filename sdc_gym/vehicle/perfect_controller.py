@@ -24,6 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 
 @njit(cache=True)
 def adopted_start(path: np.ndarray, length: int, car_x: float, car_y: float) -> int:

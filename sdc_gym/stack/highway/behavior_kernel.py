@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 # Columns of a lane view.
 AHEAD_GAP, AHEAD_SPEED, AHEAD_ID, BEHIND_GAP, BEHIND_SPEED, BEHIND_ID = range(6)
 # The executor's int state.

@@ -41,13 +41,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-from sdc_gym.lights.traffic_lights import RED, UNKNOWN, YELLOW
+from sdc_gym.lights.traffic_lights import UNKNOWN
+from sdc_gym.stack.track.node_kernels import FEASIBILITY_SLACK_M, MODE_NAMES, can_stop, stop_at_red
 
 DEFAULT_SPEED_MARGIN_MPS = 0.15
 DEFAULT_COMFORTABLE_DECEL_MPS2 = 3.05  # ITE's comfortable deceleration (the env's yellow)
-# Stopping stays "feasible" with this much slack over the exact braking distance (m): the
-# ramp's end and the controller's lag, not worth a red-light run.
-FEASIBILITY_SLACK_M = 1.0
+SQUARE = 2.0
+"""The exponent of ``v ** 2`` in the stopping test, given to the kernel at run time (a
+literal would be compiled to ``v * v``, which the C library's ``pow`` does not always
+equal)."""
+
+__all__ = ["DEFAULT_COMFORTABLE_DECEL_MPS2", "DEFAULT_SPEED_MARGIN_MPS", "FEASIBILITY_SLACK_M",
+           "StopAtRedLights", "StopAtRedParameters", "TrackBehaviorDecision",
+           "TrackBehaviorPolicy", "TrackSituation"]
 
 
 @dataclass(frozen=True)
@@ -137,7 +143,8 @@ class StopAtRedParameters:
 
 class StopAtRedLights:
     """The rule-based behavior: stop for the next red (and stoppable yellow) light, else
-    drive at the limit; see the module docstring."""
+    drive at the limit; see the module docstring. The rule is
+    :func:`~sdc_gym.stack.track.node_kernels.stop_at_red`; this class is its batch of one."""
 
     def __init__(self, params: StopAtRedParameters | None = None) -> None:
         self.params = params or StopAtRedParameters()
@@ -150,24 +157,15 @@ class StopAtRedLights:
     def can_stop(situation: TrackSituation, decel_mps2: float) -> bool:
         """Whether braking at ``decel_mps2`` stops the reference point before the line
         (with :data:`FEASIBILITY_SLACK_M`): ``v^2 <= 2 a (room + slack)``."""
-        room = situation.room_m + FEASIBILITY_SLACK_M
-        return situation.speed_mps ** 2 <= 2.0 * decel_mps2 * max(room, 0.0)
+        return bool(can_stop(float(situation.speed_mps), float(situation.room_m),
+                             float(decel_mps2), SQUARE))
 
     def decide(self, situation: TrackSituation) -> TrackBehaviorDecision:
         p = self.params
-        cruise = max(situation.speed_limit_mps - p.speed_margin_mps, 0.0)
-        line, state = situation.stop_line, situation.light_state
-        if line < 0 or situation.stop_waypoint < 0 or state not in (RED, YELLOW):
-            self._stopping_for = -1  # green or unknown: not red, drive on
-            return TrackBehaviorDecision(cruise, -1, "cruise")
-        committed = self._stopping_for == line
-        if state == RED:
-            if committed or self.can_stop(situation, p.max_decel_mps2):
-                self._stopping_for = line
-                return TrackBehaviorDecision(cruise, situation.stop_waypoint, "stop_red")
-            return TrackBehaviorDecision(cruise, -1, "run_red")
-        if committed or (p.stop_on_yellow
-                         and self.can_stop(situation, p.comfortable_decel_mps2)):
-            self._stopping_for = line
-            return TrackBehaviorDecision(cruise, situation.stop_waypoint, "stop_yellow")
-        return TrackBehaviorDecision(cruise, -1, "go_yellow")
+        speed, waypoint, mode, self._stopping_for = stop_at_red(
+            float(p.max_decel_mps2), float(p.comfortable_decel_mps2), bool(p.stop_on_yellow),
+            float(p.speed_margin_mps),
+            SQUARE, self._stopping_for, float(situation.speed_mps),
+            float(situation.speed_limit_mps), int(situation.stop_line),
+            int(situation.stop_waypoint), float(situation.room_m), int(situation.light_state))
+        return TrackBehaviorDecision(speed, waypoint, MODE_NAMES[mode])

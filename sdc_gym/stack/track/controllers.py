@@ -50,6 +50,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from sdc_gym.kernel_compiler import TypedCall
+from sdc_gym.stack.track.node_kernels import (
+    TwistParameters,
+    longitudinal,
+    low_pass,
+    pid_update,
+    twist_control,
+    twist_reset,
+    twist_state,
+    yaw_steering,
+)
 from sdc_gym.vehicle.dbw_vehicle import VehicleParameters
 
 # --- seed team's PID gains --------------------------------------------------------------------
@@ -59,7 +70,6 @@ DEFAULT_KD = 0.1
 # --- this stack's choices -------------------------------------------------------------------
 DEFAULT_THROTTLE_TAU_S = 0.1  # low-pass time constant: smooths the 50 Hz commands, ~0.1 s lag
 YAW_MIN_SPEED_MPS = 0.1  # the original yaw controller's min_speed
-LATERAL_LIMIT_MIN_SPEED_MPS = 0.1  # below this the original skips the lateral limit
 STOP_TARGET_MPS = 0.01  # a target speed below this asks for a stop
 # Below this speed with a stop target: at least the holding torque. The site car's PID may
 # brake at most |decel_limit| = 1 m/s^2 (428 N m), less than its idle creep below ~0.7 m/s:
@@ -79,7 +89,8 @@ class PID:
     ``step(error, dt)``: ``u = kp e + ki I + kd de/dt`` with ``I`` the running integral of
     ``e dt``. When ``u`` leaves ``[min_output, max_output]`` it is clamped and this step's
     integration is discarded (the integral is kept only while not clamped). The first step
-    after a reset has no derivative term.
+    after a reset has no derivative term. (The arithmetic:
+    :func:`~sdc_gym.stack.track.node_kernels.pid_update`.)
     """
 
     def __init__(self, kp: float, ki: float, kd: float, min_output: float = -math.inf,
@@ -99,16 +110,11 @@ class PID:
         """The output for this sample's ``error`` after ``dt`` seconds (``dt > 0``)."""
         if not dt > 0.0:
             raise ValueError(f"PID.step: dt must be > 0 s, got {dt!r}")
-        integral = self.integral + error * dt
-        derivative = 0.0 if self.last_error is None else (error - self.last_error) / dt
-        output = self.kp * error + self.ki * integral + self.kd * derivative
-        if output > self.max_output:
-            output = self.max_output
-        elif output < self.min_output:
-            output = self.min_output
-        else:
-            self.integral = integral
-        self.last_error = error
+        last = self.last_error
+        output, self.integral = pid_update(
+            self.kp, self.ki, self.kd, self.min_output, self.max_output, self.integral,
+            0.0 if last is None else last, last is not None, float(error), float(dt))
+        self.last_error = float(error)
         return output
 
 
@@ -131,7 +137,7 @@ class LowPassFilter:
 
     def filt(self, x: float) -> float:
         """Feed one sample, return the filtered value."""
-        self.value = self.a * x + (1.0 - self.a) * self.value
+        self.value = low_pass(self.a, self.value, float(x))
         return self.value
 
 
@@ -149,19 +155,9 @@ class YawController:
     def steering(self, target_linear_mps: float, target_angular_radps: float,
                  current_speed_mps: float) -> float:
         """rad, steering-wheel angle (positive: left)."""
-        if abs(target_linear_mps) > 0.0:
-            angular = current_speed_mps * target_angular_radps / target_linear_mps
-        else:
-            angular = 0.0
-        if abs(current_speed_mps) > LATERAL_LIMIT_MIN_SPEED_MPS:
-            max_yaw_rate = abs(self.max_lat_accel / current_speed_mps)
-            angular = min(max(angular, -max_yaw_rate), max_yaw_rate)
-        if angular == 0.0:
-            return 0.0
-        road_wheel = math.atan(self.wheel_base * angular
-                               / max(current_speed_mps, self.min_speed))
-        steering = self.steer_ratio * road_wheel
-        return min(max(steering, -self.max_steer_angle), self.max_steer_angle)
+        return yaw_steering(self.wheel_base, self.steer_ratio, self.min_speed,
+                            self.max_lat_accel, self.max_steer_angle, float(target_linear_mps),
+                            float(target_angular_radps), float(current_speed_mps))
 
 
 @dataclass(frozen=True)
@@ -226,10 +222,11 @@ class TwistController:
 
     ``sample_time_s`` is the controller's nominal period (1 / its rate): the filter's
     ``ts`` and the PID's ``dt`` on the first call; later calls use the measured time
-    between calls.
+    between calls. The node is :func:`~sdc_gym.stack.track.node_kernels.twist_control`
+    (the kernel the batched stack runs for every env); this class is its batch of one.
 
     Attributes after :meth:`control`: ``acceleration_command`` (the filtered ``u``, m/s^2),
-    ``holding``, ``stale`` (the watchdog fired).
+    ``holding``, ``stale`` (the watchdog fired), ``pid_integral``, ``filter_value``.
     """
 
     def __init__(self, vehicle: VehicleParameters, sample_time_s: float,
@@ -241,31 +238,53 @@ class TwistController:
         self.params = params or TwistControllerParameters()
         self.sample_time_s = float(sample_time_s)
         p = self.params
-        self.pid = PID(p.kp, p.ki, p.kd, vehicle.decel_limit, vehicle.accel_limit)
-        self.filter = LowPassFilter(p.throttle_tau_s, self.sample_time_s)
-        self.yaw = YawController(vehicle.wheel_base, vehicle.steer_ratio, p.yaw_min_speed_mps,
-                                 p.lateral_limit_fraction * vehicle.max_lat_accel,
-                                 vehicle.max_steer_angle)
+        if not vehicle.decel_limit < vehicle.accel_limit:
+            raise ValueError(f"PID: min_output must be < max_output, got "
+                             f"{vehicle.decel_limit!r} and {vehicle.accel_limit!r}")
+        self.filter_gain = LowPassFilter(p.throttle_tau_s, self.sample_time_s).a
         self.brake_torque_per_decel = vehicle.total_mass * vehicle.wheel_radius  # N m / (m/s^2)
         self.hold_torque = p.hold_torque_margin * vehicle.creep_hold_torque
+        self.constants = TwistParameters(
+            float(p.kp), float(p.ki), float(p.kd), float(vehicle.decel_limit),
+            float(vehicle.accel_limit), self.filter_gain, float(vehicle.wheel_base),
+            float(vehicle.steer_ratio), float(p.yaw_min_speed_mps),
+            float(p.lateral_limit_fraction * vehicle.max_lat_accel),
+            float(vehicle.max_steer_angle), self.brake_torque_per_decel, self.hold_torque,
+            float(vehicle.brake_deadband), float(p.stop_target_mps),
+            float(p.standstill_speed_mps), float(p.watchdog_s), self.sample_time_s)
+        self.state = twist_state(1)
+        self._control = TypedCall(twist_control)
         self.reset()
 
     def reset(self) -> None:
         """Forget the PID state and the filter (manual mode, a new episode)."""
-        self.pid.reset()
-        self.filter.reset()
-        self._last_time: float | None = None
-        self.acceleration_command = 0.0
-        self.holding = False
-        self.stale = False
+        twist_reset(self.state, 0)
+
+    @property
+    def acceleration_command(self) -> float:
+        return float(self.state.acceleration_command[0])
+
+    @property
+    def holding(self) -> bool:
+        return bool(self.state.holding[0])
+
+    @property
+    def stale(self) -> bool:
+        return bool(self.state.stale[0])
+
+    @property
+    def pid_integral(self) -> float:
+        """The PID's running integral of the speed error (m)."""
+        return float(self.state.integral[0])
+
+    @property
+    def filter_value(self) -> float:
+        """The low-pass filter's output (m/s^2)."""
+        return float(self.state.filtered[0])
 
     def longitudinal(self, acceleration: float) -> tuple[float, float]:
         """(throttle, brake torque N m) for a filtered acceleration command (m/s^2)."""
-        if acceleration > 0.0:
-            return min(acceleration, 1.0), 0.0
-        if acceleration < -self.vehicle.brake_deadband:
-            return 0.0, self.brake_torque_per_decel * -acceleration
-        return 0.0, 0.0
+        return longitudinal(self.constants, float(acceleration))
 
     def control(
         self,
@@ -282,30 +301,10 @@ class TwistController:
         ``twist_time_s`` and ``velocity_time_s`` are when the twist command and the speed
         were last received (for the watchdog).
         """
+        self._control(self.constants, self.state, 0, float(now_s), float(target_linear_mps),
+                      float(target_angular_radps), float(twist_time_s),
+                      float(current_speed_mps), float(velocity_time_s), bool(dbw_enabled))
         if not dbw_enabled:
-            self.reset()
             return NO_COMMAND
-        p = self.params
-        self.stale = (now_s - twist_time_s > p.watchdog_s
-                      or now_s - velocity_time_s > p.watchdog_s)
-        if self.stale:
-            target_linear_mps = 0.0
-        dt = self.sample_time_s if self._last_time is None else now_s - self._last_time
-        if dt <= 0.0:
-            dt = self.sample_time_s
-        self._last_time = now_s
-        steering = self.yaw.steering(target_linear_mps, target_angular_radps,
-                                     current_speed_mps)
-        holding = (target_linear_mps < p.stop_target_mps
-                   and current_speed_mps < p.standstill_speed_mps)
-        if self.holding and not holding:
-            # Pulling away from a hold: a fresh PID and filter (no integral from braking).
-            self.pid.reset()
-            self.filter.reset()
-        self.holding = holding
-        command = self.pid.step(target_linear_mps - current_speed_mps, dt)
-        self.acceleration_command = self.filter.filt(command)
-        throttle, brake = self.longitudinal(self.acceleration_command)
-        if holding:
-            return DBWCommand(0.0, max(brake, self.hold_torque), steering)
+        throttle, brake, steering = self.state.command[0].tolist()
         return DBWCommand(throttle, brake, steering)

@@ -205,7 +205,7 @@ class DBWStackAgent:
 
 
 def dbw_stack_for_env(
-    env: gym.Env,
+    env: gym.Env | Any,
     light_source: LightStateSource,
     *,
     name: str,
@@ -213,10 +213,11 @@ def dbw_stack_for_env(
     behavior: TrackBehaviorPolicy | None = None,
     follower: FollowerParameters | None = None,
 ) -> DBWStackAgent:
-    """The stack for a ``TrackLoop-v0`` env: its track, car, speed limit, loop period and
-    front bumper offset; ``follower`` defaults to
+    """The stack for a ``TrackLoop-v0`` env (or its
+    :class:`~sdc_gym.envs.track_setup.TrackSetup`): its track, car, speed limit, loop
+    period and front bumper offset; ``follower`` defaults to
     :data:`~sdc_gym.stack.track.follower.CONTINUOUS_FOLLOWER`."""
-    unwrapped = env.unwrapped
+    unwrapped = getattr(env, "unwrapped", env)
     loop = PHYSICS_DT * int(getattr(unwrapped, "steps_per_action", 1))
     return DBWStackAgent(
         name, unwrapped.track, unwrapped.params, light_source,

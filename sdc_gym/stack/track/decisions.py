@@ -23,7 +23,6 @@ steps; a trained policy running on the path-level env gives it a ``chooser`` ins
 
 from __future__ import annotations
 
-import math
 from collections.abc import Callable
 from typing import Any
 
@@ -35,38 +34,67 @@ from sdc_gym.lights.traffic_lights import GREEN, RED, UNKNOWN, YELLOW
 from sdc_gym.stack.track.behavior import (
     DEFAULT_COMFORTABLE_DECEL_MPS2,
     DEFAULT_SPEED_MARGIN_MPS,
-    FEASIBILITY_SLACK_M,
     TrackBehaviorDecision,
     TrackSituation,
 )
-from sdc_gym.validation.actions import discrete_index, real_array
+from sdc_gym.stack.track.node_kernels import (
+    DISTANCE_SCALE_M,
+    MODE_NAMES,
+    SPEED_FRACTIONS,
+    STATE_TIME_SCALE_S,
+    encode_features,
+)
+from sdc_gym.stack.track.node_kernels import action_decision as _action_decision
+from sdc_gym.stack.track.node_kernels import state_time as _state_time
+from sdc_gym.validation.actions import discrete_index, discrete_indices, real_array
 
 TRACK_ACTION_NAMES = ("go", "go_75", "go_50", "stop")
-SPEED_FRACTIONS = (1.0, 0.75, 0.5, 1.0)
-DISTANCE_SCALE_M = 100.0
-STATE_TIME_SCALE_S = 10.0
 LIGHT_ORDER = (RED, YELLOW, GREEN, UNKNOWN)
+__all__ = ["DISTANCE_SCALE_M", "LIGHT_ORDER", "SPEED_FRACTIONS", "STATE_TIME_SCALE_S",
+           "TRACK_ACTION_NAMES", "TrackDecisionBehavior", "TrackFeatures", "action_decision",
+           "action_values", "batch_action_values"]
 
 
-def action_decision(action: Any, situation: TrackSituation, continuous: bool
-                    ) -> TrackBehaviorDecision:
-    """The behavior decision an action stands for in ``situation``."""
-    cruise = max(situation.speed_limit_mps - DEFAULT_SPEED_MARGIN_MPS, 0.0)
+def action_values(action: Any, continuous: bool) -> tuple[int, float, float]:
+    """A valid action as the kernels take it: (index, speed value, stop value); a
+    ``ValueError`` for an invalid one."""
     if continuous:
         values = real_array(action, (2,), "a continuous track decision", "(speed, stop)")
         if not np.all(np.isfinite(values)) or np.any(np.abs(values) > 1.0 + 1e-6):
             raise ValueError(f"a continuous track decision is 2 finite numbers in [-1, 1] "
                              f"(speed, stop), got {np.asarray(action).tolist()!r}")
-        speed = 0.5 * (float(values[0]) + 1.0) * cruise
-        stop = float(values[1]) > 0.0
-        name = "stop" if stop else "go"
-    else:
-        action = discrete_index(action, len(TRACK_ACTION_NAMES), TRACK_ACTION_NAMES)
-        name = TRACK_ACTION_NAMES[action]
-        speed = SPEED_FRACTIONS[int(action)] * cruise
-        stop = name == "stop"
-    waypoint = situation.stop_waypoint if stop else -1
-    return TrackBehaviorDecision(speed, waypoint, name if waypoint >= 0 or not stop else "go")
+        return 0, float(values[0]), float(values[1])
+    return discrete_index(action, len(TRACK_ACTION_NAMES), TRACK_ACTION_NAMES), 0.0, 0.0
+
+
+
+def batch_action_values(actions: Any, envs: int, continuous: bool
+                        ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """A batch's actions as the kernels take them, checked as a whole before any is used:
+    ``(envs,)`` int indices (discrete) or ``(envs, 2)`` real numbers in [-1, 1]
+    (continuous), as (index, speed value, stop value) arrays; a ``ValueError`` names the
+    expected shape and dtype, or the first env whose action is out of range."""
+    zeros = np.zeros(envs)
+    if not continuous:
+        return discrete_indices(actions, envs, TRACK_ACTION_NAMES), zeros, zeros
+    values = real_array(actions, (envs, 2), "actions",
+                        "one (speed, stop) decision in [-1, 1] per env")
+    bad = np.flatnonzero(~(np.abs(values) <= 1.0 + 1e-6).all(axis=1))  # NaN is bad too
+    if len(bad):
+        env = int(bad[0])
+        raise ValueError(f"the continuous track decision of env {env} must be 2 finite "
+                         f"numbers in [-1, 1] (speed, stop), got {values[env].tolist()!r}")
+    return np.zeros(envs, dtype=np.int64), values[:, 0].copy(), values[:, 1].copy()
+
+def action_decision(action: Any, situation: TrackSituation, continuous: bool
+                    ) -> TrackBehaviorDecision:
+    """The behavior decision an action stands for in ``situation``
+    (:func:`~sdc_gym.stack.track.node_kernels.action_decision`)."""
+    index, speed_value, stop_value = action_values(action, continuous)
+    speed, waypoint, mode = _action_decision(
+        continuous, index, speed_value, stop_value, float(situation.speed_limit_mps),
+        DEFAULT_SPEED_MARGIN_MPS, int(situation.stop_waypoint))
+    return TrackBehaviorDecision(speed, waypoint, MODE_NAMES[mode])
 
 
 class TrackFeatures:
@@ -105,24 +133,13 @@ class TrackFeatures:
 
     def encode(self, situation: TrackSituation, state_time_s: float,
                stopping: bool) -> NDArray[np.float32]:
-        v = situation.speed_mps
-        limit = max(situation.speed_limit_mps, 1e-6)
-        room = situation.room_m
-        has_line = situation.stop_line >= 0 and math.isfinite(situation.stop_line_distance_m)
-        values = [0.0] * self.size
-        values[0] = min(v / limit, 1.5)
-        values[1] = min(situation.stop_line_distance_m / DISTANCE_SCALE_M, 1.0) \
-            if has_line else 1.0
-        values[2] = min(max(room / DISTANCE_SCALE_M, -1.0), 1.0) if has_line else 1.0
-        values[3 + LIGHT_ORDER.index(situation.light_state
-                                     if situation.light_state in LIGHT_ORDER else UNKNOWN)] = 1.0
-        values[7] = min(state_time_s / STATE_TIME_SCALE_S, 1.0)
-        values[8] = min(v * v / (2.0 * self.comfortable_decel) / DISTANCE_SCALE_M, 1.0)
-        slack_room = max(room + FEASIBILITY_SLACK_M, 0.0)
-        values[9] = float(has_line and v * v <= 2.0 * self.max_decel * slack_room)
-        values[10] = float(has_line and v * v <= 2.0 * self.comfortable_decel * slack_room)
-        values[11] = float(stopping)
-        return np.asarray(values, dtype=np.float32)
+        values = np.empty(self.size, dtype=np.float32)
+        encode_features(float(self.max_decel), float(self.comfortable_decel),
+                        float(situation.speed_mps), float(situation.speed_limit_mps),
+                        int(situation.stop_line), float(situation.stop_line_distance_m),
+                        float(situation.room_m), int(situation.light_state),
+                        float(state_time_s), bool(stopping), values)
+        return values
 
 
 class TrackDecisionBehavior:
@@ -155,10 +172,11 @@ class TrackDecisionBehavior:
 
     def state_time(self, situation: TrackSituation) -> float:
         """How long the detector has reported this line's current state (s)."""
-        key = (situation.stop_line, situation.light_state)
-        if key != self._state_key:
-            self._state_key, self._state_since = key, situation.time_s
-        return situation.time_s - self._state_since
+        line, state, self._state_since, seconds = _state_time(
+            self._state_key[0], self._state_key[1], self._state_since,
+            int(situation.stop_line), int(situation.light_state), float(situation.time_s))
+        self._state_key = (line, state)
+        return seconds
 
     def observe(self, situation: TrackSituation) -> NDArray[np.float32]:
         stopping = self.decision is not None and self.decision.stop_waypoint >= 0

@@ -43,7 +43,15 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.lights.traffic_lights import RED, UNKNOWN, VALID_STATES
+from sdc_gym.stack.track.node_kernels import (
+    DetectorConstants,
+    detect,
+    detector_reset,
+    detector_state,
+    in_gate,
+)
 
 DETECTION_GATE_M = 70.0
 DEBOUNCE_FRAMES = 3
@@ -123,7 +131,9 @@ class DetectorParameters:
 
 
 class TrafficLightDetector:
-    """The traffic light detector node; see the module docstring.
+    """The traffic light detector node; see the module docstring. Its debouncing is
+    :func:`~sdc_gym.stack.track.node_kernels.detect` (the kernel the batched stack runs for
+    every env); this class is its batch of one, with a Python light state source.
 
     Args:
         stop_waypoints: (k,) base waypoint index of each stop line (see
@@ -137,24 +147,29 @@ class TrafficLightDetector:
         self.stop_waypoints: NDArray[np.int64] = np.asarray(stop_waypoints, dtype=np.int64)
         self.source = source
         self.params = params or DetectorParameters()
+        self.constants = DetectorConstants(np.ascontiguousarray(self.stop_waypoints),
+                                           float(self.params.gate_m),
+                                           int(self.params.debounce_frames))
         self.classifications = 0
+        self._state = detector_state(1)
+        self._in_gate, self._detect = TypedCall(in_gate), TypedCall(detect)
         self.reset()
 
     def reset(self) -> None:
-        self._line = -1
-        self._candidate = UNKNOWN
-        self._count = 0
-        self.state = UNKNOWN
+        detector_reset(self._state, 0)
         self.report = LightReport(-1, -1, UNKNOWN, math.inf, -math.inf)
+
+    @property
+    def state(self) -> int:
+        """The published (debounced) state of the current line's light."""
+        return int(self._state.state[0])
 
     def process(self, time_s: float, stop_line: int, distance_m: float,
                 classify: Callable[[], int]) -> LightReport:
         """One frame from plain inputs: the next stop line and its distance; ``classify``
         is called (inside the gate only) for the light's state code."""
-        if stop_line != self._line:
-            self._line = stop_line
-            self._candidate, self._count, self.state = UNKNOWN, 0, UNKNOWN
-        if stop_line >= 0 and distance_m <= self.params.gate_m:
+        stop_line, distance_m = int(stop_line), float(distance_m)
+        if self._in_gate(self.constants, stop_line, distance_m):
             frame_state = int(classify())
             self.classifications += 1
             if frame_state not in VALID_STATES:
@@ -163,20 +178,14 @@ class TrafficLightDetector:
                                  "UNKNOWN 4)")
         else:
             frame_state = UNKNOWN
-        if frame_state == self._candidate:
-            self._count += 1
-        else:
-            self._candidate, self._count = frame_state, 1
-        if self._count >= self.params.debounce_frames:
-            self.state = self._candidate
-        if stop_line >= 0:
-            if stop_line >= len(self.stop_waypoints):
-                raise ValueError(f"stop line index {stop_line} out of range: the detector "
-                                 f"knows {len(self.stop_waypoints)} stop line(s)")
-            waypoint = int(self.stop_waypoints[stop_line])
-        else:
-            waypoint = -1
-        self.report = LightReport(stop_line, waypoint, self.state, distance_m, time_s)
+        if stop_line >= len(self.stop_waypoints):
+            raise ValueError(f"stop line index {stop_line} out of range: the detector "
+                             f"knows {len(self.stop_waypoints)} stop line(s)")
+        self._detect(self.constants, self._state, 0, float(time_s), stop_line, distance_m,
+               frame_state)
+        s = self._state
+        self.report = LightReport(stop_line, int(s.report_waypoint[0]), int(s.state[0]),
+                                  distance_m, time_s)
         return self.report
 
     def detect(self, observation: Mapping[str, Any], time_s: float) -> LightReport:

@@ -30,7 +30,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
+from sdc_gym.stack.track.node_kernels import FollowerConstants, follower_state
+from sdc_gym.stack.track.node_kernels import command_speed as _command_speed
+from sdc_gym.stack.track.node_kernels import curvature_to_point as _curvature_to_point
+from sdc_gym.stack.track.node_kernels import follow as _follow
+from sdc_gym.stack.track.node_kernels import is_following as _is_following
+from sdc_gym.stack.track.node_kernels import target_point as _target_point
 from sdc_gym.stack.track.waypoints import FinalWaypoints
 
 LOOKAHEAD_MIN_M = 6.0
@@ -87,19 +95,14 @@ def curvature_to_point(x: float, y: float, yaw: float, target_x: float,
                        target_y: float) -> float:
     """1/m, curvature of the arc from the pose ``(x, y, yaw)`` (tangent to the heading)
     through ``(target_x, target_y)``: ``2 y_local / (x_local^2 + y_local^2)``."""
-    dx = target_x - x
-    dy = target_y - y
-    cos_yaw, sin_yaw = math.cos(yaw), math.sin(yaw)
-    local_x = cos_yaw * dx + sin_yaw * dy
-    local_y = -sin_yaw * dx + cos_yaw * dy
-    squared = local_x * local_x + local_y * local_y
-    if squared <= 0.0:
-        return 0.0
-    return 2.0 * local_y / squared
+    return _curvature_to_point(float(x), float(y), float(yaw), float(target_x),
+                               float(target_y))
 
 
 class PurePursuit:
-    """The waypoint follower node; see the module docstring.
+    """The waypoint follower node; see the module docstring. Its arithmetic is
+    :func:`~sdc_gym.stack.track.node_kernels.follow` (the kernel the batched stack runs for
+    every env); this class is its batch of one.
 
     Attributes after :meth:`follow`: ``target`` (the look-ahead point), ``lookahead_m``,
     ``curvature`` (of the last recomputation), ``recomputed`` (False: kept).
@@ -107,14 +110,32 @@ class PurePursuit:
 
     def __init__(self, params: FollowerParameters | None = None) -> None:
         self.params = params or FollowerParameters()
+        p = self.params
+        self.constants = FollowerConstants(
+            float(p.lookahead_min_m), float(p.lookahead_gain_s),
+            float(p.displacement_threshold_m), float(p.angle_threshold_rad),
+            bool(p.speed_from_next_waypoint))
+        self.state = follower_state(1)
+        self._follow = TypedCall(_follow)
         self.reset()
 
     def reset(self) -> None:
-        self._angular = 0.0
+        for array in self.state:
+            array[0] = 0
+        self.state.lookahead[0] = self.params.lookahead_min_m
         self.target: tuple[float, float] | None = None
-        self.lookahead_m = self.params.lookahead_min_m
-        self.curvature = 0.0
-        self.recomputed = False
+
+    @property
+    def lookahead_m(self) -> float:
+        return float(self.state.lookahead[0])
+
+    @property
+    def curvature(self) -> float:
+        return float(self.state.curvature[0])
+
+    @property
+    def recomputed(self) -> bool:
+        return bool(self.state.recomputed[0])
 
     def lookahead_distance(self, speed_mps: float) -> float:
         """m, ``max(lookahead_min, lookahead_gain * speed)``."""
@@ -124,59 +145,33 @@ class PurePursuit:
     def target_point(x: float, y: float, final: FinalWaypoints,
                      lookahead_m: float) -> tuple[float, float]:
         """The polyline's point at ``lookahead_m`` from ``(x, y)`` (see the module)."""
-        dx = final.x - x
-        dy = final.y - y
-        beyond = np.flatnonzero(dx * dx + dy * dy > lookahead_m * lookahead_m)
-        if len(beyond) == 0:
-            return float(final.x[-1]), float(final.y[-1])
-        i = int(beyond[0])
-        if i == 0:
-            return float(final.x[0]), float(final.y[0])
-        # Segment P0 -> P1 enters the circle's outside: |P0 + t (P1 - P0) - C| = L, t in
-        # (0, 1]; P0 lies inside the circle, so the larger root is the crossing.
-        p0x, p0y = float(dx[i - 1]), float(dy[i - 1])
-        ux, uy = float(dx[i]) - p0x, float(dy[i]) - p0y
-        a = ux * ux + uy * uy
-        b = p0x * ux + p0y * uy
-        c = p0x * p0x + p0y * p0y - lookahead_m * lookahead_m
-        t = (-b + math.sqrt(max(b * b - a * c, 0.0))) / a
-        return x + p0x + t * ux, y + p0y + t * uy
+        return _target_point(float(x), float(y), _floats(final.x), _floats(final.y),
+                             float(lookahead_m))
 
     def is_following(self, x: float, y: float, yaw: float, final: FinalWaypoints) -> bool:
         """True when the pose is on the path: closer than the displacement threshold to
         the line through the first two final waypoints and within the angle threshold of
         its direction."""
-        if len(final) < 2:
-            return False
-        ax, ay = float(final.x[0]), float(final.y[0])
-        ux, uy = float(final.x[1]) - ax, float(final.y[1]) - ay
-        norm = math.hypot(ux, uy)
-        if norm <= 0.0:
-            return False
-        displacement = abs(ux * (y - ay) - uy * (x - ax)) / norm
-        angle = abs(math.remainder(math.atan2(uy, ux) - yaw, 2.0 * math.pi))
-        return (displacement < self.params.displacement_threshold_m
-                and angle < self.params.angle_threshold_rad)
+        return _is_following(self.constants, float(x), float(y), float(yaw),
+                             _floats(final.x), _floats(final.y))
 
     def follow(self, x: float, y: float, yaw: float, speed_mps: float,
                final: FinalWaypoints) -> TwistCommand:
         """The twist command for the pose and speed along ``final``."""
         if len(final) == 0:
             raise ValueError("PurePursuit.follow: final waypoints are empty")
-        self.lookahead_m = self.lookahead_distance(speed_mps)
-        self.target = self.target_point(x, y, final, self.lookahead_m)
-        self.recomputed = not self.is_following(x, y, yaw, final)
-        if self.recomputed:
-            self.curvature = curvature_to_point(x, y, yaw, *self.target)
-            self._angular = speed_mps * self.curvature
-        return TwistCommand(linear_mps=self.command_speed(x, y, yaw, final),
-                            angular_radps=self._angular)
+        linear, angular = self._follow(self.constants, self.state, 0, float(x), float(y),
+                                  float(yaw), float(speed_mps), _floats(final.x),
+                                  _floats(final.y), _floats(final.speed))
+        self.target = (float(self.state.target_x[0]), float(self.state.target_y[0]))
+        return TwistCommand(linear_mps=linear, angular_radps=angular)
 
     def command_speed(self, x: float, y: float, yaw: float, final: FinalWaypoints) -> float:
         """m/s, the first final waypoint's speed (or the next one ahead of the car's, see
         :attr:`FollowerParameters.speed_from_next_waypoint`)."""
-        if not self.params.speed_from_next_waypoint:
-            return float(final.speed[0])
-        ahead = np.flatnonzero((final.x - x) * math.cos(yaw) + (final.y - y) * math.sin(yaw)
-                               > 0.0)
-        return float(final.speed[ahead[0] if len(ahead) else -1])
+        return _command_speed(self.constants, float(x), float(y), float(yaw),
+                              _floats(final.x), _floats(final.y), _floats(final.speed))
+
+
+def _floats(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.ascontiguousarray(values, dtype=np.float64)

@@ -7,7 +7,9 @@ it runs at tick ``k`` when ``floor(k * r * dt)`` grew since tick ``k - 1`` (and 
 0). The arithmetic is exact (fractions), so e.g. 30 Hz in a 50 Hz loop runs on exactly
 30 of every 50 ticks, with gaps of 1 or 2 ticks. A rate at or above the loop rate runs
 every tick (the loop rate is the most a node can get; :meth:`RateScheduler.rate` tells
-the effective rate).
+the effective rate). With ``r dt = p / q`` in lowest terms the test is integer arithmetic,
+``(k p) // q > ((k - 1) p) // q`` (:func:`~sdc_gym.stack.track.node_kernels.node_due`, which
+the batched stack evaluates in its kernel).
 
 Presets (:data:`RATE_PRESETS`; the waypoint loader runs once, at construction):
 
@@ -30,6 +32,10 @@ import math
 from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from fractions import Fraction
+
+import numpy as np
+
+from sdc_gym.stack.track.node_kernels import node_due
 
 NODES = ("detector", "updater", "follower", "dbw")
 """The scheduled nodes, in the order they run within a tick (data flows downstream)."""
@@ -105,6 +111,17 @@ class RateScheduler:
             # At or above the loop rate: every tick.
             self._per_tick[name] = None if runs_per_tick is None or runs_per_tick >= 1 \
                 else runs_per_tick
+        # Each node's runs per tick as a reduced fraction of ints (1/1: every tick), for
+        # the kernels' exact integer test (node_kernels.node_due).
+        fractions = [Fraction(1) if per_tick is None else per_tick
+                     for per_tick in self._per_tick.values()]
+        self.runs = np.array([f.numerator for f in fractions], dtype=np.int64)
+        self.per_ticks = np.array([f.denominator for f in fractions], dtype=np.int64)
+        self._names = tuple(self._per_tick)
+        self._fractions = [(name, int(runs), int(per)) for name, runs, per in
+                           zip(self._names, self.runs.tolist(), self.per_ticks.tolist(),
+                               strict=True)]
+        self._index = {name: i for i, name in enumerate(self._names)}
         self.reset()
 
     def reset(self) -> None:
@@ -128,13 +145,11 @@ class RateScheduler:
 
     def is_due(self, name: str, tick: int) -> bool:
         """Whether ``name`` runs at ``tick``."""
-        per_tick = self._per_tick[name]
-        if per_tick is None or tick == 0:
-            return True
-        return math.floor(tick * per_tick) > math.floor((tick - 1) * per_tick)
+        i = self._index[name]
+        return bool(node_due(int(self.runs[i]), int(self.per_ticks[i]), int(tick)))
 
     def tick(self) -> list[str]:
         """The nodes due at the current tick (in the mapping's order); advances one tick."""
         tick = self.ticks
         self.ticks += 1
-        return [name for name in self._per_tick if self.is_due(name, tick)]
+        return [name for name, runs, per in self._fractions if node_due(runs, per, tick)]

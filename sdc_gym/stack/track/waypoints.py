@@ -45,7 +45,15 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.road.track_map import TrackMap, loop_points
+from sdc_gym.stack.track.node_kernels import (
+    UpdaterConstants,
+    lower_for_stop,
+    next_waypoint,
+    update_waypoints,
+    updater_state,
+)
 
 # --- the original loader's end-of-list ramp (reproduced only on request) -------------------
 SEAM_RAMP_DECEL_MPS2 = 1.0
@@ -227,7 +235,9 @@ class FinalWaypoints:
 
 
 class WaypointUpdater:
-    """The waypoint updater node; see the module docstring.
+    """The waypoint updater node; see the module docstring. Its arithmetic is
+    :func:`~sdc_gym.stack.track.node_kernels.update_waypoints` (the kernel the batched stack
+    runs for every env); this class is its batch of one.
 
     Usage (every updater tick)::
 
@@ -240,7 +250,6 @@ class WaypointUpdater:
         self.waypoints = waypoints
         self.params = params or UpdaterParameters()
         self.count = min(self.params.count, len(waypoints))
-        self._window = np.arange(-self.params.search_behind, self.params.search_ahead + 1)
         # Stop lines lie up to half a waypoint spacing from their waypoint: given their
         # positions, a stop at a stop-line waypoint is measured to the line itself.
         self.stop_line_offsets: dict[int, float] = {}
@@ -251,12 +260,32 @@ class WaypointUpdater:
                 self.stop_line_offsets[int(index)] = float(
                     (x - waypoints.x[index]) * math.cos(yaw)
                     + (y - waypoints.y[index]) * math.sin(yaw))
+        offsets = np.zeros(len(waypoints))
+        for index, offset in self.stop_line_offsets.items():
+            offsets[index] = offset
+        p = self.params
+        self.constants = UpdaterConstants(
+            _floats(waypoints.x), _floats(waypoints.y), _floats(waypoints.s),
+            _floats(waypoints.speed), float(waypoints.length), int(self.count),
+            int(p.search_behind), int(p.search_ahead), float(p.full_search_distance_m ** 2),
+            offsets, float(p.stop_margin_m), float(2.0 * p.stop_decel_mps2),
+            float(p.min_ramp_speed_mps), float(p.watchdog_s))
+        self.state = updater_state(1)
+        self._update = TypedCall(update_waypoints)
         self.reset()
 
     def reset(self) -> None:
         """Forget the previous index: the next search covers the whole list."""
-        self.previous_index = -1
-        self.full_searches = 0
+        self.state.previous_index[0] = -1
+        self.state.full_searches[0] = 0
+
+    @property
+    def previous_index(self) -> int:
+        return int(self.state.previous_index[0])
+
+    @property
+    def full_searches(self) -> int:
+        return int(self.state.full_searches[0])
 
     def next_waypoint(self, x: float, y: float, yaw: float) -> int:
         """Index of the next waypoint ahead of the pose (windowed search, see the module).
@@ -264,40 +293,19 @@ class WaypointUpdater:
         The closest waypoint is taken; if it lies behind the car (its direction from the
         car makes more than 90 degrees with the heading) its successor is the next one.
         """
-        wp = self.waypoints
-        n = len(wp)
-        closest = -1
-        if self.previous_index >= 0:
-            window = (self.previous_index + self._window) % n
-            squared = (wp.x[window] - x) ** 2 + (wp.y[window] - y) ** 2
-            best = int(np.argmin(squared))
-            if squared[best] <= self.params.full_search_distance_m ** 2:
-                closest = int(window[best])
-        if closest < 0:
-            closest = wp.closest(x, y)
-            self.full_searches += 1
-        self.previous_index = closest
-        ahead = ((wp.x[closest] - x) * math.cos(yaw) + (wp.y[closest] - y) * math.sin(yaw))
-        return closest if ahead > 0.0 else (closest + 1) % n
+        return int(next_waypoint(self.constants, self.state, 0, float(x), float(y),
+                                 float(yaw)))
 
     def speeds_for_stop(self, indices: NDArray[np.int64], stop_waypoint: int,
                         speeds: NDArray[np.float64]) -> NDArray[np.float64]:
-        """``speeds`` at ``indices`` lowered to stop ``stop_margin_m`` before the stop line
-        at waypoint ``stop_waypoint``: zero from the stop point on, a square-root ramp
-        before it. A stop line behind the first index (the car is past it) changes nothing.
+        """``speeds`` at ``indices`` (consecutive from ``indices[0]``, as the updater
+        publishes them) lowered to stop ``stop_margin_m`` before the stop line at waypoint
+        ``stop_waypoint``: zero from the stop point on, a square-root ramp before it. A
+        stop line behind the first index (the car is past it) changes nothing.
         """
-        wp = self.waypoints
-        p = self.params
-        # Distances along the list from its first waypoint: monotone across the seam (a
-        # list never holds more than the loop's waypoints, so never wraps twice).
-        along = (wp.s[indices] - wp.s[indices[0]]) % wp.length
-        line_at = ((wp.distance_ahead(int(indices[0]), stop_waypoint)
-                    + self.stop_line_offsets.get(stop_waypoint, 0.0)) % wp.length)
-        to_stop = line_at - p.stop_margin_m - along
-        ramp = np.sqrt(2.0 * p.stop_decel_mps2 * np.maximum(to_stop, 0.0))
-        ramp[ramp < p.min_ramp_speed_mps] = 0.0
-        # Waypoints beyond the line itself (in the list) stay at rest too: one stop only.
-        return np.minimum(speeds, ramp)
+        lowered = np.array(speeds, dtype=np.float64)
+        lower_for_stop(self.constants, int(indices[0]), int(stop_waypoint), lowered)
+        return lowered
 
     def update(
         self,
@@ -319,21 +327,21 @@ class WaypointUpdater:
             stop_waypoint: base index of the stop line to stop at, -1 for none.
             speed_cap_mps: the behavior layer's target speed (None: the base speeds).
         """
-        wp = self.waypoints
-        first = self.next_waypoint(x, y, yaw)
-        indices = (first + np.arange(self.count)) % len(wp)
-        speeds = wp.speed[indices].copy()
-        if speed_cap_mps is not None:
-            np.minimum(speeds, max(float(speed_cap_mps), 0.0), out=speeds)
-        if stop_waypoint >= 0:
-            if stop_waypoint >= len(wp):
-                raise ValueError(f"WaypointUpdater.update: stop_waypoint must be -1 or a "
-                                 f"waypoint index in [0, {len(wp)}), got {stop_waypoint}")
-            speeds = self.speeds_for_stop(indices, stop_waypoint, speeds)
-        limit = self.params.watchdog_s
-        stale = now_s - pose_time_s > limit or (
-            light_time_s is not None and now_s - light_time_s > limit)
-        if stale:
-            speeds[:] = 0.0
-        return FinalWaypoints(indices=indices, x=wp.x[indices], y=wp.y[indices],
-                              speed=speeds, time_s=now_s, emergency=stale)
+        n = len(self.waypoints)
+        if stop_waypoint >= n:
+            raise ValueError(f"WaypointUpdater.update: stop_waypoint must be -1 or a "
+                             f"waypoint index in [0, {n}), got {stop_waypoint}")
+        count = self.count
+        x_out, y_out, speed = np.empty(count), np.empty(count), np.empty(count)
+        first, stale = self._update(
+            self.constants, self.state, 0, float(now_s), float(x), float(y), float(yaw),
+            float(pose_time_s), int(stop_waypoint), light_time_s is not None,
+            0.0 if light_time_s is None else float(light_time_s), speed_cap_mps is not None,
+            0.0 if speed_cap_mps is None else float(speed_cap_mps), x_out, y_out, speed)
+        indices = (first + np.arange(count)) % n
+        return FinalWaypoints(indices=indices, x=x_out, y=y_out, speed=speed, time_s=now_s,
+                              emergency=bool(stale))
+
+
+def _floats(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.ascontiguousarray(values, dtype=np.float64)

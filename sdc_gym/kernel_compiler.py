@@ -1,0 +1,130 @@
+"""How the track's numba kernels are compiled: :data:`kernel`, one decorator for all.
+
+``@kernel`` is ``numba.njit(cache=True, _nrt=False)``:
+
+* ``cache=True``: the machine code is written next to the module (``__pycache__``) and
+  loaded by later processes, so only the first run after a change compiles (a fresh clone
+  compiles every kernel once: ~45 s of the first track env on the loaded 2-core machine).
+  numba checks only the file that defines a function, but a kernel here has the code of
+  the kernels it calls from other modules compiled into it: a change to ``dbw_kernel.py``
+  would leave the cached frame kernel of ``track_kernel.py`` stale. So for every numba
+  function of this package the stamp that decides whether its cache is current is the
+  hash of *all* the package's modules that use numba (:class:`PackageStampLocator`,
+  installed when this module is imported, which every kernel module does first): any
+  change to any kernel recompiles them all.
+* ``_nrt=False``: no numba runtime (NRT) in the function. With the runtime every array a
+  function receives, every array field of a NamedTuple argument and every view it takes
+  is reference-counted with an atomic increment and decrement; a frame kernel that
+  passes the world's state (a tuple of ~40 arrays) to its helpers paid ~0.8 us per call
+  in those counts alone, about half of the track's frame time. The kernels only read and
+  write arrays that Python owns (and keeps alive during the call), so they need no
+  counting. The price: such a function cannot allocate (``np.empty``, ``.copy()``) or
+  return a new array; numba refuses to compile one that tries, so a mistake is loud.
+
+:func:`bind` is for a kernel that Python calls once per env step with the same arguments
+(a world's state tuples): numba's dispatcher works out the types of its arguments at
+every call to pick the machine code, and for a tuple of ~60 arrays that costs ~60 us, more
+than the kernel's own work for one env; the bound function skips it.
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from numba import njit, typeof
+from numba.core import caching, config
+from numba.core.dispatcher import Dispatcher
+
+PACKAGE = Path(__file__).resolve().parent
+
+
+@functools.lru_cache(maxsize=1)
+def package_stamp() -> str:
+    """The hash of every module of this package that uses numba (their bytes, by path)."""
+    digest = hashlib.sha256()
+    for path in sorted(PACKAGE.rglob("*.py")):
+        source = path.read_bytes()
+        if b"numba" in source or b"kernel_compiler" in source:
+            digest.update(str(path.relative_to(PACKAGE)).encode() + b"\0" + source)
+    return digest.hexdigest()
+
+
+# Older numba releases name these _InTreeCacheLocator and _CacheImpl.
+_IN_TREE = getattr(caching, "InTreeCacheLocator", None) or caching._InTreeCacheLocator
+_CACHE_IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl
+
+
+class PackageStampLocator(_IN_TREE):  # type: ignore[misc, valid-type]
+    """numba's in-tree cache (``__pycache__`` next to the module) for this package's
+    functions, current only while no kernel module of the package changed (see the
+    module docstring). Other packages' functions, and a ``NUMBA_CACHE_DIR`` set by the
+    user, keep numba's own locators."""
+
+    @classmethod
+    def from_function(cls, py_func: Any, py_file: str) -> PackageStampLocator | None:
+        if config.CACHE_DIR or not Path(py_file).resolve().is_relative_to(PACKAGE):
+            return None
+        return super().from_function(py_func, py_file)
+
+    def get_source_stamp(self) -> str:
+        return package_stamp()
+
+
+if PackageStampLocator not in _CACHE_IMPL._locator_classes:
+    _CACHE_IMPL._locator_classes.insert(0, PackageStampLocator)
+
+kernel = njit(cache=True, _nrt=False)
+
+
+def machine_code(function: Dispatcher, *args: Any) -> Callable[..., Any]:
+    """``function``'s compiled entry point for the types of ``args`` (compiled or loaded
+    from the cache now). It converts scalars as numba does but trusts arrays and tuples to
+    have these types: call it only with arguments built the same way."""
+    types = tuple(typeof(arg) for arg in args)
+    function.compile(types)
+    return function.overloads[types].entry_point
+
+
+def bind(function: Dispatcher, *args: Any) -> Callable[[], Any]:
+    """``function(*args)`` as a call without arguments: the machine code for the types of
+    ``args`` is looked up once, here, and called on exactly these objects (arrays updated
+    in place, never replaced) each time."""
+    entry = machine_code(function, *args)
+
+    def call() -> Any:
+        return entry(*args)
+
+    return call
+
+
+class TypedCall:
+    """``function`` for one owner that always passes arguments of the same types (its own
+    state tuples, arrays it makes the same way, and ``float()``/``int()``/``bool()``
+    scalars): the machine code is looked up at the first call (:func:`machine_code`) and
+    later calls skip numba's dispatch (~5 us for a tuple of arrays, more than the work of
+    a node of the drive-by-wire stack). Pickles as the function alone."""
+
+    __slots__ = ("entry", "function")
+
+    def __init__(self, function: Dispatcher) -> None:
+        self.function = function
+        self.entry: Callable[..., Any] | None = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self.entry is None:
+            self.entry = machine_code(self.function, *args)
+        return self.entry(*args)
+
+    def __getstate__(self) -> dict[str, Any]:
+        return {"function": self.function}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.function = state["function"]
+        self.entry = None
+
+
+__all__ = ["PackageStampLocator", "TypedCall", "bind", "kernel", "machine_code", "package_stamp"]

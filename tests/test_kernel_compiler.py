@@ -1,0 +1,86 @@
+"""How the package's numba kernels are compiled and cached (``sdc_gym.kernel_compiler``)."""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sdc_gym import kernel_compiler
+from sdc_gym.kernel_compiler import PackageStampLocator, bind, kernel, package_stamp
+
+PACKAGE = Path(kernel_compiler.__file__).resolve().parent
+
+
+def test_every_module_using_numba_installs_the_package_locator_first():
+    """A module that compiles before the locator is installed would cache under numba's
+    per-file stamp (and the two locators would overwrite each other's index)."""
+    missing = [str(path.relative_to(PACKAGE)) for path in sorted(PACKAGE.rglob("*.py"))
+               if path.name != "kernel_compiler.py"
+               and ("from numba import" in (text := path.read_text())
+                    or "import numba" in text) and "kernel_compiler" not in text]
+    assert not missing, f"import sdc_gym.kernel_compiler before numba's decorators: {missing}"
+
+
+def test_kernels_are_cached_under_the_stamp_of_all_kernel_modules():
+    from sdc_gym.envs.track_kernel import run_steps
+    from sdc_gym.vehicle.dbw_kernel import step_vehicle
+
+    for function in (run_steps, step_vehicle):
+        locator = function._cache._impl.locator
+        assert isinstance(locator, PackageStampLocator)
+        assert locator.get_source_stamp() == package_stamp()
+
+
+def test_the_stamp_changes_with_any_kernel_module_and_only_with_those(tmp_path, monkeypatch):
+    tree = tmp_path / "sdc_gym"
+    for name in ("vehicle/dbw_kernel.py", "envs/track_kernel.py", "config.py"):
+        (tree / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy(PACKAGE / name, tree / name)
+    monkeypatch.setattr(kernel_compiler, "PACKAGE", tree)
+
+    def stamp() -> str:
+        package_stamp.cache_clear()
+        return package_stamp()
+
+    try:
+        first = stamp()
+        (tree / "config.py").write_text((tree / "config.py").read_text() + "\n# no kernels\n")
+        assert stamp() == first  # not a kernel module: the caches stay current
+        dbw = tree / "vehicle" / "dbw_kernel.py"
+        dbw.write_text(dbw.read_text().replace("_SMALL_HALF_TURN = 1e-4",
+                                               "_SMALL_HALF_TURN = 2e-4"))
+        assert stamp() != first  # a callee of the frame kernel changed: recompile all
+    finally:
+        package_stamp.cache_clear()
+
+
+@kernel
+def _add_into(values, amount, out):
+    for i in range(values.size):
+        out[i] = values[i] + amount[0]
+
+
+def test_a_bound_call_runs_the_kernel_on_the_same_arrays():
+    values, amount, out = np.arange(4.0), np.array([0.5]), np.zeros(4)
+    call = bind(_add_into, values, amount, out)
+    call()
+    np.testing.assert_array_equal(out, [0.5, 1.5, 2.5, 3.5])
+    amount[0] = -1.0  # arrays are read at each call, in place
+    call()
+    np.testing.assert_array_equal(out, [-1.0, 0.0, 1.0, 2.0])
+
+
+def test_a_kernel_cannot_allocate():
+    """No runtime: numba refuses an allocation at compile time (a loud error, never a
+    leak or a silent fallback)."""
+    from numba.core.errors import TypingError
+
+    @kernel
+    def allocate(n):
+        return np.zeros(n)
+
+    with pytest.raises(TypingError, match=r"No implementation of function .*zeros"):
+        allocate(3)
