@@ -23,7 +23,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import sdc_gym  # noqa: F401
-from sdc_gym.envs.highway_vector import env_info
+from sdc_gym.envs.batch_vector import env_info
 from sdc_gym.envs.track_vector import TrackLoopBehaviorVectorEnv, TrackLoopVectorEnv
 
 ROOT = Path(__file__).resolve().parents[1]

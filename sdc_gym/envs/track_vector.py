@@ -10,7 +10,7 @@ env with the same seed and actions (``reset(seed=s)`` seeds env ``i`` with ``s +
 Gymnasium's ``SyncVectorEnv`` does; a list seeds each env).
 
 Autoreset (``autoreset_mode``), seeding and ``info`` are those of the highway's vector
-envs (:mod:`sdc_gym.envs.highway_vector`, the same base class): ``NEXT_STEP`` (Gymnasium
+envs (:mod:`sdc_gym.envs.batch_vector`, the same base class): ``NEXT_STEP`` (Gymnasium
 1.x's default) returns an ended episode's last observation and resets that env on the
 following ``step()``, whose action for it is ignored (reward 0, not terminated);
 ``SAME_STEP`` resets it within the step (the last observation in ``info["final_obs"]``,
@@ -29,13 +29,13 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
-from sdc_gym.envs.highway_vector import _BatchVectorEnv
+from sdc_gym.envs.batch_vector import BatchVectorEnv
 from sdc_gym.envs.track_behavior_world import TrackBehaviorWorld
 from sdc_gym.envs.track_world import TrackWorld
 from sdc_gym.validation.actions import real_array
 
 
-class TrackLoopBehaviorVectorEnv(_BatchVectorEnv):
+class TrackLoopBehaviorVectorEnv(BatchVectorEnv):
     """``num_envs`` ``sdc_gym/TrackLoopBehavior-v0`` envs as one batch (see the module
     docstring). ``config`` is the single env's; actions are ``(num_envs,)`` ints
     (discrete) or ``(num_envs, 2)`` floats (continuous)."""
@@ -78,7 +78,7 @@ class TrackLoopBehaviorVectorEnv(_BatchVectorEnv):
         return self.batch.world.is_success(env)
 
 
-class TrackLoopVectorEnv(_BatchVectorEnv):
+class TrackLoopVectorEnv(BatchVectorEnv):
     """``num_envs`` ``sdc_gym/TrackLoop-v0`` envs as one batch (see the module docstring).
     Actions are ``(num_envs, 3)``: throttle, brake torque, steering-wheel angle per env;
     observations the single env's dict, each key stacked over the envs."""
