@@ -188,3 +188,34 @@ def test_scalar_and_vectorized_projection_agree(original_highway, monkeypatch):
     vectorized = line.to_frenet(xy, s_guess=s + 0.3)
     for a, b in zip(small, vectorized, strict=True):
         assert np.abs(a - b).max() < 1e-9
+
+
+def test_few_point_paths_equal_the_array_methods_bit_for_bit(original_highway):
+    """line_frames_few and project_few (direct paths on Python floats / one kernel call)
+    give the array methods' bits: frames at random s over three laps either way and at the
+    seam, projections from good guesses and from guesses so far off that the local search
+    loses the points (project()'s global redo)."""
+    line = original_highway.reference
+    rng = np.random.default_rng(11)
+    s = np.concatenate([rng.uniform(-3 * line.length, 3 * line.length, 4000),
+                        [0.0, -0.0, line.length, np.nextafter(line.length, 0.0), -1e-300]])
+    arrays = np.stack(line.line_frames(s), axis=-1)
+    few = np.array(line.line_frames_few(s.tolist()))
+    assert few.shape == arrays.shape
+    assert np.array_equal(few.view(np.int64), arrays.view(np.int64))
+    one = np.array([line.line_frames_few([value])[0] for value in s[:500].tolist()])
+    assert np.array_equal(one.view(np.int64), arrays[:500].view(np.int64))
+    with pytest.raises(IndexError), np.errstate(invalid="ignore"):  # as line_frames fails
+        line.line_frames_few([float("nan")])
+
+    xy = line.to_xy(s[:300], rng.uniform(-10.0, 10.0, 300))
+    for offset in (0.0, 3.0, 400.0):
+        guesses = s[:300] + offset
+        expected = line.project(xy[:, 0], xy[:, 1], guesses)
+        got = line.project_few(xy.tolist(), guesses.tolist())
+        for a, b in zip(got, expected, strict=True):
+            assert np.array_equal(np.array(a).view(np.int64), b.view(np.int64))
+        single = [line.project_few([point], [guess])
+                  for point, guess in zip(xy[:50].tolist(), guesses[:50].tolist(), strict=True)]
+        assert [pair[0][0] for pair in single] == expected[0][:50].tolist()
+        assert [pair[1][0] for pair in single] == expected[1][:50].tolist()

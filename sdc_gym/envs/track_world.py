@@ -71,6 +71,7 @@ from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT, VehicleState, lag_gains, veh
 from sdc_gym.vehicle.manual_driver import ManualDriver
 
 _NO_INCIDENTS: tuple[Incident, ...] = ()
+_OBSERVED_CAR_COLUMNS = [X, Y, YAW, SPEED, YAW_RATE]  # the observation's first five values
 _REACH_MARGIN = 1e-9  # the kernel's broad phase is never narrower than Python's
 
 
@@ -427,10 +428,13 @@ class TrackWorld:
         values stacked along a leading axis (new arrays)."""
         st, setup = self.state, self.setup
         rows = np.arange(self.envs) if rows is None else rows
-        car = st.vehicle[rows]
-        values = np.column_stack((car[:, X], car[:, Y], car[:, YAW], car[:, SPEED],
-                                  car[:, YAW_RATE], st.next_line[rows],
-                                  st.line_distance[rows])).astype(np.float32)
+        # The columns as float64 (the line index cast as a stack would), then float32;
+        # filled in place, which costs a fraction of np.column_stack for one env.
+        columns = np.empty((len(rows), 7))
+        columns[:, 0:5] = st.vehicle[rows][:, _OBSERVED_CAR_COLUMNS]
+        columns[:, 5] = st.next_line[rows]
+        columns[:, 6] = st.line_distance[rows]
+        values = columns.astype(np.float32)
         observation: dict[str, Any] = {
             "pose": values[:, 0:3],
             "velocity": values[:, 3:4],

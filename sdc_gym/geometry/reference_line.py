@@ -26,6 +26,7 @@ line turns left (counter-clockwise).
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -141,6 +142,7 @@ class ReferenceLine:
         # ...), for the evaluations in real arithmetic (_newton_arrays, line_frames).
         xy_rows = np.stack([self._coef.real, self._coef.imag], axis=-1).reshape(count, -1)
         self._coef_xy = np.ascontiguousarray(xy_rows)
+        self._coef_rows: list[list[float]] = self._coef_xy.tolist()  # for line_frames_few
         self._total_param = coarse_length
         self._geometry = LineGeometry(self._coef_xy, float(self._knot_step),
                                       float(self._inverse_step), int(self._segments - 1),
@@ -337,8 +339,29 @@ class ReferenceLine:
                                                                   float]]:
         """:meth:`line_frames` for a list of arc lengths, as tuples ``(x, y, nx, ny,
         curvature)`` of Python floats."""
-        return list(zip(*(column.tolist() for column in self.line_frames(s_values)),
-                        strict=True))
+        # The same operations as line_frames on Python floats, without building arrays
+        # (a planner asks for a point or a few per step): ``%`` is numpy's remainder (both
+        # are fmod and then the divisor's sign), ``int`` its truncation, ``abs`` of a
+        # complex the C library's hypot (np.hypot), ``** 3.0`` the C library's pow.
+        if not all(map(math.isfinite, s_values)):
+            return list(zip(*(column.tolist() for column in self.line_frames(s_values)),
+                            strict=True))
+        rows, length, scale = self._coef_rows, self.length, self._param_scale
+        inverse_step, knot_step, last = self._inverse_step, self._knot_step, self._segments - 1
+        frames = []
+        for s in s_values:
+            u = (float(s) % length) * scale
+            i = min(int(u * inverse_step), last)
+            ax, ay, bx, by, cx, cy, dx, dy, a3x, a3y, b2x, b2y, a6x, a6y = rows[i]
+            t = u - i * knot_step
+            velocity_x = (a3x * t + b2x) * t + cx
+            velocity_y = (a3y * t + b2y) * t + cy
+            speed = abs(complex(velocity_x, velocity_y))
+            curvature = (velocity_x * (a6y * t + b2y) - velocity_y * (a6x * t + b2x)) / (
+                speed ** 3.0)
+            frames.append((((ax * t + bx) * t + cx) * t + dx, ((ay * t + by) * t + cy) * t + dy,
+                           velocity_y / speed, -velocity_x / speed, curvature))
+        return frames
 
     def project(self, x: ArrayLike, y: ArrayLike, s_guess: ArrayLike
                 ) -> tuple[FloatArray, FloatArray]:
@@ -362,7 +385,15 @@ class ReferenceLine:
                     s_guesses: list[float]) -> tuple[list[float], list[float]]:
         """:meth:`project` for points and guesses given and returned as Python lists."""
         xy = np.asarray(points, dtype=np.float64).reshape(-1, 2)
-        s, d = self.project(xy[:, 0], xy[:, 1], s_guesses)
+        # project()'s first pass without its array checks (a caller projects a point or
+        # a few per step); should it lose a point, project() redoes them all the same way.
+        x, y = np.ascontiguousarray(xy[:, 0]), np.ascontiguousarray(xy[:, 1])
+        s0 = np.ascontiguousarray(s_guesses, dtype=np.float64)
+        if s0.shape == x.shape:
+            out = np.empty((3, x.size))
+            if not project_points(*self._geometry, x, y, s0, *out):
+                return out[0].tolist(), out[1].tolist()
+        s, d = self.project(x, y, s_guesses)
         return s.tolist(), d.tolist()
 
     def geometry(self) -> LineGeometry:
