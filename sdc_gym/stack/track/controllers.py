@@ -51,7 +51,7 @@ import math
 from dataclasses import dataclass
 
 from sdc_gym.kernel_compiler import TypedCall
-from sdc_gym.stack.track.node_kernels import (
+from sdc_gym.stack.track.control_kernels import (
     TwistParameters,
     longitudinal,
     low_pass,

@@ -33,12 +33,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from sdc_gym.kernel_compiler import TypedCall
-from sdc_gym.stack.track.node_kernels import FollowerConstants, follower_state
-from sdc_gym.stack.track.node_kernels import command_speed as _command_speed
-from sdc_gym.stack.track.node_kernels import curvature_to_point as _curvature_to_point
-from sdc_gym.stack.track.node_kernels import follow as _follow
-from sdc_gym.stack.track.node_kernels import is_following as _is_following
-from sdc_gym.stack.track.node_kernels import target_point as _target_point
+from sdc_gym.stack.track.control_kernels import FollowerConstants, follower_state
+from sdc_gym.stack.track.control_kernels import command_speed as _command_speed
+from sdc_gym.stack.track.control_kernels import curvature_to_point as _curvature_to_point
+from sdc_gym.stack.track.control_kernels import follow as _follow
+from sdc_gym.stack.track.control_kernels import is_following as _is_following
+from sdc_gym.stack.track.control_kernels import target_point as _target_point
 from sdc_gym.stack.track.waypoints import FinalWaypoints
 
 LOOKAHEAD_MIN_M = 6.0

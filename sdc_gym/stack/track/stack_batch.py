@@ -24,14 +24,21 @@ from numpy.typing import NDArray
 
 from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import UNKNOWN
-from sdc_gym.stack.track.dbw_stack import DBWStackAgent
-from sdc_gym.stack.track.node_kernels import (
-    DetectorConstants,
-    DetectorState,
+from sdc_gym.stack.track.control_kernels import (
     FollowerConstants,
     FollowerState,
     TwistParameters,
     TwistState,
+    follow,
+    follower_state,
+    twist_control,
+    twist_reset,
+    twist_state,
+)
+from sdc_gym.stack.track.dbw_stack import DBWStackAgent
+from sdc_gym.stack.track.node_kernels import (
+    DetectorConstants,
+    DetectorState,
     UpdaterConstants,
     UpdaterState,
     action_decision,
@@ -39,14 +46,9 @@ from sdc_gym.stack.track.node_kernels import (
     detector_reset,
     detector_state,
     encode_features,
-    follow,
-    follower_state,
     in_gate,
     node_due,
     state_time,
-    twist_control,
-    twist_reset,
-    twist_state,
     update_waypoints,
     updater_state,
 )
