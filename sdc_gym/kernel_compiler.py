@@ -68,10 +68,37 @@ class PackageStampLocator(_IN_TREE):  # type: ignore[misc, valid-type]
     def from_function(cls, py_func: Any, py_file: str) -> PackageStampLocator | None:
         if config.CACHE_DIR or not Path(py_file).resolve().is_relative_to(PACKAGE):
             return None
-        return super().from_function(py_func, py_file)
+        locator = super().from_function(py_func, py_file)
+        if locator is not None:
+            _prune_stale_files(locator.get_cache_path())
+        return locator
 
     def get_source_stamp(self) -> str:
         return package_stamp()
+
+    def get_disambiguator(self) -> str:
+        # The stamp in the file names: numba unpickles an index's signatures before it
+        # compares stamps, so an index written before a kernel's NamedTuple moved to
+        # another module would fail to load (AttributeError) instead of going stale.
+        return f"{super().get_disambiguator()}-{_short_stamp()}"
+
+
+def _short_stamp() -> str:
+    return package_stamp()[:_STAMP_CHARS]
+
+
+_STAMP_CHARS = 12
+
+
+@functools.cache
+def _prune_stale_files(cache_path: str) -> None:
+    """Delete the cache files in ``cache_path`` (a ``__pycache__`` of this package) that
+    belong to another package stamp: they can never load again. Once per folder."""
+    current = _short_stamp()
+    for path in Path(cache_path).glob("*.nb[ic]"):
+        stem = path.name.rsplit(".py", 1)[0]  # "module.qualname-lineno-stamp"
+        if stem.rsplit("-", 1)[-1] != current:
+            path.unlink(missing_ok=True)
 
 
 if PackageStampLocator not in _CACHE_IMPL._locator_classes:

@@ -84,3 +84,23 @@ def test_a_kernel_cannot_allocate():
 
     with pytest.raises(TypingError, match=r"No implementation of function .*zeros"):
         allocate(3)
+
+
+def test_cache_files_carry_the_stamp_and_files_of_other_stamps_are_pruned(tmp_path):
+    """numba unpickles an index's signatures before it compares stamps: an index from
+    before a NamedTuple moved module would raise instead of going stale. So the stamp is
+    part of every file name, and a folder's files of other stamps are deleted."""
+    from sdc_gym.geometry.exact_math import py_hypot
+
+    py_hypot(3.0, 4.0)
+    locator = py_hypot._cache._impl.locator
+    current = package_stamp()[:12]
+    assert locator.get_disambiguator().endswith(f"-{current}")
+    kept = tmp_path / f"exact_math.py_hypot-10-{current}.py311.nbi"
+    stale = [tmp_path / "exact_math.py_hypot-10.py311.nbi",  # before stamps in names
+             tmp_path / "exact_math.py_hypot-10-0123456789ab.py311.1.nbc"]
+    for path in (kept, *stale):
+        path.write_bytes(b"x")
+    kernel_compiler._prune_stale_files.cache_clear()
+    kernel_compiler._prune_stale_files(str(tmp_path))
+    assert kept.exists() and not any(path.exists() for path in stale)
