@@ -73,6 +73,7 @@ from agents.track.light_dataset import (
     CROP_SIZE_PX,
     crop_light,
 )
+from sdc_gym.geometry import exact_math
 from sdc_gym.road.track_map import TrackMap
 from sdc_gym.sensors.track_camera import CameraConfig, camera_position, light_bounding_box
 
@@ -307,7 +308,8 @@ class CropLightSource:
         self.track = track
         self.camera_config = CameraConfig.training() if camera_config is None else camera_config
         self._positions = np.asarray(track.light_positions, dtype=np.float64)
-        self._facing = np.column_stack([np.cos(track.light_yaw), np.sin(track.light_yaw)])
+        self._facing = np.column_stack([exact_math.cos(track.light_yaw),
+                                        exact_math.sin(track.light_yaw)])
 
     def visible_light(self, car_x: float, car_y: float, car_yaw: float,
                       light_index: int | None = None
@@ -324,8 +326,10 @@ class CropLightSource:
                              f"{self.track.name!r}, got {light_index}")
         camera = camera_position(car_x, car_y, car_yaw, config)[:2]
         to_light = self._positions[:, :2] - camera
-        ahead = to_light @ np.array([math.cos(car_yaw), math.sin(car_yaw)])
-        faces_camera = np.einsum("ij,ij->i", self._facing, -to_light) > 0
+        # Elementwise products, not `@` or einsum: BLAS's rounding depends on the processor.
+        ahead = to_light[:, 0] * math.cos(car_yaw) + to_light[:, 1] * math.sin(car_yaw)
+        faces_camera = (self._facing[:, 0] * -to_light[:, 0]
+                        + self._facing[:, 1] * -to_light[:, 1]) > 0
         in_range = np.hypot(to_light[:, 0], to_light[:, 1]) <= config.max_range_m
         wanted = faces_camera & in_range & (ahead > 0)
         if light_index is not None:

@@ -22,6 +22,7 @@ from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+from sdc_gym.geometry import exact_math
 
 _FROM_SIZES = np.zeros((0, 0))  # _near_pairs: the reach from the cars' sizes
 
@@ -44,8 +45,8 @@ def boxes_overlap(
     delta = cb - ca
     ha = np.asarray(heading_a, dtype=np.float64)
     hb = np.asarray(heading_b, dtype=np.float64)
-    axes_a = (np.cos(ha), np.sin(ha))
-    axes_b = (np.cos(hb), np.sin(hb))
+    axes_a = (exact_math.cos(ha), exact_math.sin(ha))
+    axes_b = (exact_math.cos(hb), exact_math.sin(hb))
     half_la, half_wa = 0.5 * np.asarray(length_a), 0.5 * np.asarray(width_a)
     half_lb, half_wb = 0.5 * np.asarray(length_b), 0.5 * np.asarray(width_b)
     overlap = np.ones(np.broadcast_shapes(delta.shape[:-1], ha.shape, hb.shape), dtype=bool)

@@ -29,11 +29,13 @@ kernel computes is what Python computes.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.geometry.fixed_order import fma
 from sdc_gym.kernel_compiler import kernel
 
 FloatArray = NDArray[np.float64]
@@ -125,6 +127,46 @@ def _exp_loop(x: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _sin_loop(x: np.ndarray, out: np.ndarray) -> None:
+    for i in range(x.size):
+        out[i] = math.sin(x[i])
+
+
+@njit(cache=True)
+def _cos_loop(x: np.ndarray, out: np.ndarray) -> None:
+    for i in range(x.size):
+        out[i] = math.cos(x[i])
+
+
+@njit(cache=True)
+def _log10_loop(x: np.ndarray, out: np.ndarray) -> None:
+    for i in range(x.size):
+        out[i] = math.log10(x[i])
+
+
+@njit(cache=True)
+def _complex_abs_loop(re: np.ndarray, im: np.ndarray, out: np.ndarray) -> None:
+    for i in range(re.size):
+        out[i] = numpy_complex_abs(re[i], im[i])
+
+
+@njit(cache=True, inline="always")
+def numpy_complex_abs(re: float, im: float) -> float:
+    """``np.abs(re + 1j * im)`` as numpy's SIMD kernel computes it on x86-64-v3 and v4
+    processors: ``larger * sqrt(fma(ratio, ratio, 1))`` with ``ratio = smaller / larger``
+    (``loops_unary_complex``; its baseline kernel, without the fused multiply-add, rounds
+    differently in about half of all cases). Finite inputs only: the simulation's."""
+    a = abs(re)
+    b = abs(im)
+    larger = a if a > b else b
+    smaller = b if a > b else a
+    if larger == 0.0:
+        return 0.0
+    ratio = smaller / larger
+    return math.sqrt(fma(ratio, ratio, 1.0)) * larger
+
+
+@njit(cache=True)
 def _power_loop(x: np.ndarray, exponent: np.ndarray, out: np.ndarray) -> None:
     for i in range(x.size):
         out[i] = x[i] ** exponent[i]
@@ -155,10 +197,40 @@ def atan2(y: ArrayLike, x: ArrayLike) -> FloatArray:
 
 def exp(x: ArrayLike) -> FloatArray:
     """``math.exp`` elementwise."""
+    return _unary(_exp_loop, x)
+
+
+def _unary(loop: Any, x: ArrayLike) -> FloatArray:
     a = np.ascontiguousarray(x, dtype=np.float64)
     out = np.empty(a.size)
-    _exp_loop(a.ravel(), out)
+    loop(a.ravel(), out)
     return out.reshape(a.shape)
+
+
+def sin(x: ArrayLike) -> FloatArray:
+    """``math.sin`` elementwise (numpy's ``sin`` has SIMD kernels chosen per processor)."""
+    return _unary(_sin_loop, x)
+
+
+def cos(x: ArrayLike) -> FloatArray:
+    """``math.cos`` elementwise."""
+    return _unary(_cos_loop, x)
+
+
+def log10(x: ArrayLike) -> FloatArray:
+    """``math.log10`` elementwise (for positive finite values)."""
+    return _unary(_log10_loop, x)
+
+
+def complex_abs(z: ArrayLike) -> FloatArray:
+    """``np.abs`` of a complex array, computed the same way on every processor (see
+    :func:`numpy_complex_abs`)."""
+    values = np.asarray(z, dtype=np.complex128)
+    re = np.ascontiguousarray(values.real).ravel()
+    im = np.ascontiguousarray(values.imag).ravel()
+    out = np.empty(re.size)
+    _complex_abs_loop(re, im, out)
+    return out.reshape(values.shape)
 
 
 def power(x: ArrayLike, exponent: ArrayLike) -> FloatArray:

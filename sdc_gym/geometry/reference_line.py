@@ -34,7 +34,8 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from sdc_gym.geometry.exact_math import power
+from sdc_gym.geometry.exact_math import atan2, complex_abs, power
+from sdc_gym.geometry.fixed_order import dot_rows
 from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
 from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
 from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
@@ -61,7 +62,7 @@ def _segment_lengths(spline: CubicSpline, knots: FloatArray) -> FloatArray:
     h = np.diff(knots)
     u = knots[:-1, None] + h[:, None] * _GL_NODES[None, :]
     speed = np.hypot(*np.moveaxis(spline(u, 1), -1, 0))
-    return h * (speed @ _GL_WEIGHTS)
+    return h * dot_rows(speed, _GL_WEIGHTS)
 
 
 class ReferenceLine:
@@ -116,7 +117,7 @@ class ReferenceLine:
             lo = coarse_knots[seg_index]
             h = u - lo
             nodes = lo[:, None] + h[:, None] * _GL_NODES[None, :]
-            partial = h * (np.hypot(*np.moveaxis(coarse(nodes, 1), -1, 0)) @ _GL_WEIGHTS)
+            partial = h * dot_rows(np.hypot(*np.moveaxis(coarse(nodes, 1), -1, 0)), _GL_WEIGHTS)
             speed = np.hypot(*coarse(u, 1).T)
             u = u - (cum[seg_index] + partial - targets) / speed
         resampled = coarse(u)
@@ -178,29 +179,30 @@ class ReferenceLine:
     def tangent(self, s: ArrayLike) -> FloatArray:
         """Unit tangent(s) (direction of travel): shape ``s.shape + (2,)``."""
         velocity = self._velocity(*self._local(self._param(s)))
-        return self._pair(velocity / np.abs(velocity))
+        return self._pair(velocity / complex_abs(velocity))
 
     def normal(self, s: ArrayLike) -> FloatArray:
         """Unit normal(s) pointing to the *right* of travel (the direction of +d)."""
         velocity = self._velocity(*self._local(self._param(s)))
-        return self._pair(-1j * velocity / np.abs(velocity))
+        return self._pair(-1j * velocity / complex_abs(velocity))
 
     def heading(self, s: ArrayLike) -> FloatArray:
         """Direction of travel in radians, counter-clockwise from +x."""
-        return np.angle(self._velocity(*self._local(self._param(s))))
+        velocity = self._velocity(*self._local(self._param(s)))
+        return atan2(velocity.imag, velocity.real)  # np.angle, without numpy's SIMD atan2
 
     def curvature(self, s: ArrayLike) -> FloatArray:
         """Signed curvature in 1/m (positive turning left); radius = 1 / |curvature|."""
         c, t = self._local(self._param(s))
         velocity = self._velocity(c, t)
         acceleration = c[..., 6] * t + c[..., 5]
-        return (velocity.conj() * acceleration).imag / np.abs(velocity) ** 3
+        return (velocity.conj() * acceleration).imag / power(complex_abs(velocity), 3.0)
 
     def frame(self, s: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Point and unit tangent at ``s`` in one pass (each with a trailing (x, y) axis)."""
         c, t = self._local(self._param(s))
         velocity = self._velocity(c, t)
-        return self._pair(self._point(c, t)), self._pair(velocity / np.abs(velocity))
+        return self._pair(self._point(c, t)), self._pair(velocity / complex_abs(velocity))
 
     # ------------------------------------------------------------------ Frenet
     def to_xy(self, s: ArrayLike, d: ArrayLike) -> FloatArray:
@@ -209,15 +211,15 @@ class ReferenceLine:
         velocity = self._velocity(c, t)
         # The right-hand normal is the unit tangent turned by -90 degrees: times -i.
         offset = np.asarray(d, dtype=np.float64) * -1j
-        return self._pair(self._point(c, t) + offset * velocity / np.abs(velocity))
+        return self._pair(self._point(c, t) + offset * velocity / complex_abs(velocity))
 
     def to_xy_and_curvature(self, s: ArrayLike, d: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """:meth:`to_xy` and :meth:`curvature` from one evaluation (for planners)."""
         c, t = self._local(self._param(s))
         velocity = self._velocity(c, t)
-        speed = np.abs(velocity)
+        speed = complex_abs(velocity)
         offset = np.asarray(d, dtype=np.float64) * -1j
-        curvature = (velocity.conj() * (c[..., 6] * t + c[..., 5])).imag / speed**3
+        curvature = (velocity.conj() * (c[..., 6] * t + c[..., 5])).imag / power(speed, 3.0)
         return self._pair(self._point(c, t) + offset * velocity / speed), curvature
 
     def wrap_s(self, s: ArrayLike) -> FloatArray:
@@ -292,7 +294,7 @@ class ReferenceLine:
         c, t = self._local(u)
         velocity = self._velocity(c, t)
         # d is the offset's component along the right normal -i * tangent.
-        d = ((p - self._point(c, t)) * (1j * velocity.conj())).real / np.abs(velocity)
+        d = ((p - self._point(c, t)) * (1j * velocity.conj())).real / complex_abs(velocity)
         scale = self._param_scale
         moved = (np.mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
         return u / scale, d, moved

@@ -16,7 +16,11 @@ different directions can always bring it back to the start (positive lengths are
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+
+from sdc_gym.geometry.fixed_order import solve_2x2
 
 Segment = tuple[str, float | None] | tuple[str, float, float]
 """``("straight", length m | None = solved for closure)`` or ``("arc", radius m, turn deg)``."""
@@ -33,18 +37,18 @@ def closing_lengths(layout: tuple[Segment, ...]) -> list[float]:
     free_directions: list[np.ndarray] = []
     for segment in layout:
         if segment[0] == "straight":
-            direction = np.array([np.cos(heading), np.sin(heading)])
+            direction = np.array([math.cos(heading), math.sin(heading)])
             if segment[1] is None:
                 free_directions.append(direction)
             else:
                 displacement += segment[1] * direction
         else:
             _, radius, degrees = segment
-            turn = np.radians(degrees)
+            turn = math.radians(degrees)
             end = heading + turn
             side = np.sign(turn)
             displacement += radius * side * np.array(
-                [np.sin(end) - np.sin(heading), np.cos(heading) - np.cos(end)]
+                [math.sin(end) - math.sin(heading), math.cos(heading) - math.cos(end)]
             )
             heading = end
     if not np.isclose(heading, 2 * np.pi):
@@ -55,8 +59,9 @@ def closing_lengths(layout: tuple[Segment, ...]) -> list[float]:
         return []
     if len(free_directions) != 2:
         raise ValueError("a layout needs none or exactly two free straights to close")
-    lengths = np.linalg.solve(np.column_stack(free_directions), -displacement)
-    if np.any(lengths <= 0):
+    # A fixed-order solve, not np.linalg.solve: LAPACK's last bit depends on the processor.
+    lengths = solve_2x2(np.column_stack(free_directions), -displacement)
+    if min(lengths) <= 0:
         raise ValueError(f"layout cannot close with positive straights: {lengths}")
     return [float(length) for length in lengths]
 
@@ -75,19 +80,20 @@ def sample_layout(layout: tuple[Segment, ...], spacing: float) -> np.ndarray:
         if segment[0] == "straight":
             length = next(free) if segment[1] is None else segment[1]
             count = max(round(length / spacing), 1)
-            direction = np.array([np.cos(heading), np.sin(heading)])
+            direction = np.array([math.cos(heading), math.sin(heading)])
             for k in range(1, count + 1):
                 points.append(position + direction * length * k / count)
             position = position + direction * length
         else:
             _, radius, degrees = segment
-            turn = np.radians(degrees)
+            turn = math.radians(degrees)
             side = np.sign(turn)
-            centre = position + radius * side * np.array([-np.sin(heading), np.cos(heading)])
+            centre = position + radius * side * np.array([-math.sin(heading), math.cos(heading)])
             count = max(round(radius * abs(turn) / spacing), 2)
             for k in range(1, count + 1):
                 angle = heading + turn * k / count
-                points.append(centre + radius * side * np.array([np.sin(angle), -np.cos(angle)]))
+                points.append(
+                    centre + radius * side * np.array([math.sin(angle), -math.cos(angle)]))
             heading += turn
             position = points[-1]
     return np.asarray(points[:-1])  # the last point is the first again

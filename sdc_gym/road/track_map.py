@@ -36,6 +36,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.highway_map import MapFormatError
 from sdc_gym.road.stop_line_kernel import next_stop_line
@@ -270,7 +271,8 @@ class TrackMap:
             light_z = waypoints[nearest, 2] + height
         else:
             light_z = np.zeros(0)
-        light_yaw = np.angle(-np.exp(1j * reference.heading(light_s)))  # heading + pi
+        heading = reference.heading(light_s)  # the light faces against travel: heading + pi
+        light_yaw = exact_math.atan2(-exact_math.sin(heading), -exact_math.cos(heading))
 
         return cls(
             name=name,
@@ -298,6 +300,12 @@ class TrackMap:
         )
 
 
+def _dot2(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """The dot product of two 2-vectors in Python floats (np.dot is BLAS's ddot, whose
+    rounding depends on the processor)."""
+    return float(a[0]) * float(b[0]) + float(a[1]) * float(b[1])
+
+
 def loop_points(xy: ArrayLike) -> NDArray[np.float64]:
     """The (x, y) points a closed reference line goes through, from a recorded open path.
 
@@ -314,7 +322,7 @@ def loop_points(xy: ArrayLike) -> NDArray[np.float64]:
            and np.hypot(*(points[-1] - points[0])) <= _MIN_WAYPOINT_SPACING_M):
         points = points[:-1]
     while (len(points) > _MIN_WAYPOINTS
-           and np.dot(points[0] - points[-1], points[-1] - points[-2]) < 0.0):
+           and _dot2(points[0] - points[-1], points[-1] - points[-2]) < 0.0):
         points = points[:-1]
     return points
 
@@ -391,7 +399,7 @@ def read_track_file(path: str | os.PathLike[str]) -> TrackFile:
             raise TrackFormatError(f"{path}:{bad}: a negative velocity in an x,y,z,velocity "
                                    "file (km/h)")
         step = np.diff(data[:, :2], axis=0)
-        yaw = np.arctan2(step[:, 1], step[:, 0])
+        yaw = exact_math.atan2(step[:, 1], step[:, 0])
         yaw = np.append(yaw, yaw[-1])
         waypoints = np.column_stack([data[:, :3], yaw])
         return TrackFile(waypoints, data[:, 3] * KMH_TO_MPS, "x,y,z,velocity")

@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.original_frenet import OriginalFrenet
 from sdc_gym.sensors.original_telemetry import original_frenet_fields
 from sdc_gym.units import MPS_TO_MPH
@@ -127,8 +128,8 @@ def round_significant(values: NDArray[np.float64], digits: int = 7) -> NDArray[n
     """Round to ``digits`` significant digits, like printing a number as ``%.7g`` text."""
     values = np.asarray(values, dtype=np.float64)
     magnitude = np.abs(values)
-    exponent = np.floor(np.log10(np.where(magnitude > 0, magnitude, 1.0)))
-    scale = 10.0 ** (digits - 1 - exponent)
+    exponent = np.floor(exact_math.log10(np.where(magnitude > 0, magnitude, 1.0)))
+    scale = exact_math.power(10.0, digits - 1 - exponent)
     return np.round(values * scale) / scale
 
 

@@ -85,6 +85,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.config import ConfigError, resolve_config
+from sdc_gym.geometry import exact_math
 from sdc_gym.lights.traffic_lights import GREEN, RED, VALID_STATES, YELLOW
 
 # Re-exported: scenes and benchmarks place lights at the track's one housing height.
@@ -313,7 +314,7 @@ def _light_points(centers: NDArray[np.float64], yaws: NDArray[np.float64],
                   local: NDArray[np.float64]) -> NDArray[np.float64]:
     """World positions (..., n, 3) of points given in each light's frame (along its facing
     direction, to its left, up; m) for centres (..., 3) and facing yaws (...)."""
-    cos_f, sin_f = np.cos(yaws)[..., None], np.sin(yaws)[..., None]
+    cos_f, sin_f = exact_math.cos(yaws)[..., None], exact_math.sin(yaws)[..., None]
     points = np.empty((*yaws.shape, len(local), 3))
     points[..., 0] = centers[..., None, 0] + local[:, 0] * cos_f - local[:, 1] * sin_f
     points[..., 1] = centers[..., None, 1] + local[:, 0] * sin_f + local[:, 1] * cos_f
@@ -372,8 +373,8 @@ def _view_lights(centers: NDArray[np.float64], yaws: NDArray[np.float64], car_x:
     to_camera_x = car_x + config.mount_forward_m * cos_yaw - centers[:, 0]
     to_camera_y = car_y + config.mount_forward_m * sin_yaw - centers[:, 1]
     ground_distance = np.hypot(to_camera_x, to_camera_y)
-    cos_view = (np.cos(yaws) * to_camera_x + np.sin(yaws) * to_camera_y) / np.maximum(
-        ground_distance, 1e-9)
+    cos_view = (exact_math.cos(yaws) * to_camera_x + exact_math.sin(yaws) * to_camera_y
+                ) / np.maximum(ground_distance, 1e-9)
     visible = (depth[:, _CORNERS].min(-1) >= NEAR_CLIP_M) & overlaps & (
         ground_distance <= config.max_range_m)
     return _LightView(visible, box, depth[:, _CENTRE], cos_view > 0, np.abs(cos_view),
@@ -424,7 +425,7 @@ def render_background(config: CameraConfig) -> NDArray[np.uint8]:
     y = (np.arange(config.height) + 0.5 - config.cy) / config.fy
     ray_up = sin_p - y * cos_p
     ray_forward = cos_p + y * sin_p
-    elevation = np.arctan2(ray_up, ray_forward)
+    elevation = exact_math.atan2(ray_up, ray_forward)
     image = np.empty((config.height, config.width, 3), dtype=np.float64)
     blend = np.clip(elevation / SKY_GRADIENT_RAD, 0.0, 1.0)[:, None]
     sky = (1 - blend) * np.array(SKY_HORIZON_RGB) + blend * np.array(SKY_TOP_RGB)

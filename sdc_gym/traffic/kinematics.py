@@ -27,6 +27,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.exact_math import py_mod
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
@@ -274,7 +275,7 @@ class TrafficGeometry:
         poses(self.table, self.loop, self.grid_scale, self.grid_count, self.clamp_cell,
               s.reshape(-1), d.reshape(-1), v.reshape(-1), d_dot.reshape(-1),
               *(row.reshape(-1) for row in outputs))
-        heading = np.arctan2(outputs[6], outputs[5])
+        heading = exact_math.atan2(outputs[6], outputs[5])
         return TrafficSamples._make(outputs[0], d, v, outputs[1], outputs[2], heading,
                                     outputs[3], outputs[4])
 

@@ -77,12 +77,23 @@ def check_loop_points(xy: NDArray[np.float64], where: str, error: type[Exception
                     f"{closing / longest:.0f} x its longest step (at most "
                     f"{100 * MAX_CLOSING_FRACTION:g} % or {MAX_CLOSING_STEPS:g} x): a file "
                     "runs once around a loop and ends near its start")
-    width = float(np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(
-        len(xy))
+    width = _rms_distance_from_best_line(xy)
     if width < MIN_WIDTH_RATIO * length:
         raise error(f"{where}: the points are (nearly) collinear: {width:.3g} m RMS from one "
                     f"line for a loop of {length:.0f} m (at least {MIN_WIDTH_RATIO:g} x its "
                     "length), so the loop folds back on itself")
+
+
+def _rms_distance_from_best_line(xy: NDArray[np.float64]) -> float:
+    """RMS distance (m) of the points from their best-fitting straight line: the smaller
+    singular value of the centred points over sqrt(n), from the 2 x 2 scatter matrix in
+    closed form (LAPACK's SVD rounds differently per processor)."""
+    centred = xy - xy.mean(axis=0)
+    sxx = float((centred[:, 0] * centred[:, 0]).sum())
+    syy = float((centred[:, 1] * centred[:, 1]).sum())
+    sxy = float((centred[:, 0] * centred[:, 1]).sum())
+    smallest = 0.5 * (sxx + syy) - math.hypot(0.5 * (sxx - syy), sxy)
+    return math.sqrt(max(smallest, 0.0) / len(xy))
 
 
 def _crossing(points: NDArray[np.float64]) -> tuple[int, int] | None:

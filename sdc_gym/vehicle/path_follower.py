@@ -19,6 +19,7 @@ from numba import njit
 from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+from sdc_gym.geometry import exact_math
 from sdc_gym.vehicle.perfect_controller import adopted_start, frames_of_motion
 
 FloatArray = NDArray[np.float64]
@@ -177,6 +178,6 @@ class PathFollower:
         drive_paths(frames, self.xy, self.frame, self.path, self.path_length,
                     self.path_start, self.queue, self.queue_length, self.queue_due,
                     self.queue_head, self.queue_count, track, step, moving, speed)
-        heading = np.arctan2(step[..., 1], step[..., 0])
+        heading = exact_math.atan2(step[..., 1], step[..., 0])
         hold_headings(heading, moving, self.yaw)
         return track, heading, speed

@@ -39,10 +39,10 @@ from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
-from filterpy.kalman import KalmanFilter
 from numpy.typing import NDArray
 
 from sdc_gym.road.highway_map import HighwayMap
+from sdc_gym.stack.highway.kalman import FixedOrderKalmanFilter
 from sdc_gym.stack.highway.perception_kernel import (
     BOUNDARY,
     FAULTY,
@@ -126,7 +126,8 @@ class Perception:
         road: the env's map (``env.unwrapped.road``).
         params: tuning; defaults to :class:`PerceptionParameters`'s.
 
-    Tracking (``params.tracking``): one ``filterpy`` :class:`KalmanFilter` per car id with
+    Tracking (``params.tracking``): one ``filterpy`` Kalman filter per car id
+    (:class:`~sdc_gym.stack.highway.kalman.FixedOrderKalmanFilter`) with
     state ``(s, d, s rate, d rate)`` and a constant-velocity model (white-noise
     acceleration of std ``process_noise`` on both axes). Each sighting measures all four:
     s and d as sensed (or repaired), the s rate as the tangential speed divided by
@@ -209,7 +210,7 @@ class Perception:
     # ------------------------------------------------------------------ public API
     def reset(self) -> None:
         """Forget every track (start of an episode)."""
-        self._filters: dict[int, KalmanFilter] = {}
+        self._filters: dict[int, FixedOrderKalmanFilter] = {}
         self._last_seen: dict[int, float] = {}
         self._last_time: float | None = None
 
@@ -288,8 +289,8 @@ class Perception:
             cached = self._transition_cache[dt] = (transition, noise)
         return cached
 
-    def _new_filter(self, z: FloatArray) -> KalmanFilter:
-        kf = KalmanFilter(dim_x=4, dim_z=4)
+    def _new_filter(self, z: FloatArray) -> FixedOrderKalmanFilter:
+        kf = FixedOrderKalmanFilter(dim_x=4, dim_z=4)
         kf.x = z.reshape(4, 1).copy()
         kf.P = self._measurement_cov.copy()
         kf.R = self._measurement_cov

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.geometry import exact_math
 from sdc_gym.kernel_compiler import TypedCall
 from sdc_gym.road.track_map import TrackMap, loop_points
 from sdc_gym.stack.track.node_kernels import (
@@ -144,7 +145,7 @@ def load_waypoints(
         speed[speed < SEAM_RAMP_MIN_SPEED_MPS] = 0.0
     return TrackWaypoints(
         x=_read_only(xy[:, 0].copy()), y=_read_only(xy[:, 1].copy()),
-        yaw=_read_only(np.arctan2(step[:, 1], step[:, 0])), s=_read_only(s),
+        yaw=_read_only(exact_math.atan2(step[:, 1], step[:, 0])), s=_read_only(s),
         speed=_read_only(speed), length=length)
 
 
