@@ -24,7 +24,7 @@ from filterpy.kalman import KalmanFilter
 
 from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.fixed_order import dot_rows, fma, inverse, matmul, solve_2x2
-from sdc_gym.road import builtin_highways
+from sdc_gym.road import builtin_highways, builtin_tracks
 from sdc_gym.road.layout import closing_lengths
 from sdc_gym.stack.highway.kalman import FixedOrderKalmanFilter
 
@@ -130,10 +130,13 @@ def test_complex_abs_is_numpys_fused_kernel() -> None:
 
 
 def test_built_in_roads_have_the_same_bits_everywhere() -> None:
-    # The closing straights as LAPACK computed them with the SkylakeX kernels (the
-    # episodes' recordings were made there); Haswell's kernels gave ...f4e.
+    # The highway's closing straights as LAPACK computed them with the SkylakeX kernels
+    # (the episodes' recordings were made there); Haswell's kernels gave ...f4e.
     assert [v.hex() for v in closing_lengths(builtin_highways._DEFAULT_LAYOUT)] == [
         "0x1.c623088734f4dp+8", "0x1.750e12dcad8a6p+8"]
+    # The track's layout: Haswell's and SkylakeX's kernels agree on it.
+    assert [v.hex() for v in closing_lengths(builtin_tracks._DEFAULT_LAYOUT)] == [
+        "0x1.7c942cc8fa4ebp+10", "0x1.51c9c5b341643p+10"]
     assert builtin_highways.get_highway_map("default").reference.length.hex() == (
         "0x1.afaf934b743d2p+12")
     assert builtin_highways.get_highway_map("oval").reference.length.hex() == (

@@ -13,8 +13,11 @@ one order on every machine:
   terms in order, then the lanes added pairwise, ``(l0 + l2) + (l1 + l3)``): any fixed
   order would do, this one keeps every episode recorded before the change (on Haswell
   and SkylakeX machines) valid;
-* :func:`solve_2x2` is Gaussian elimination with partial pivoting and fused
-  multiply-adds, as LAPACK's ``dgesv`` does it with the SkylakeX kernels;
+* :func:`solve_2x2` is Gaussian elimination with partial pivoting in the operations
+  LAPACK's ``dgesv`` makes with OpenBLAS's kernels (the multiplier by the pivot's
+  reciprocal, the forward substitution unfused, the back substitution fused: the
+  SkylakeX kernels' results for the built-in highway, Haswell's and SkylakeX's for the
+  built-in track, so their recorded episodes stay valid);
 * :func:`inverse` is Gauss-Jordan elimination with partial pivoting.
 
 A fused multiply-add (:func:`fma`, one rounding of ``a * b + c``) is an IEEE 754
@@ -120,11 +123,11 @@ def solve_2x2(matrix: ArrayLike, rhs: ArrayLike) -> tuple[float, float]:
         a00, a01, a10, a11, b0, b1 = a10, a11, a00, a01, b1, b0
     if a00 == 0.0:
         raise ValueError("solve_2x2: the matrix is singular")
-    factor = a10 / a00
+    factor = a10 * (1.0 / a00)  # dgetf2 scales the column by the pivot's reciprocal
     u11 = _fma_py(-factor, a01, a11)
     if u11 == 0.0:
         raise ValueError("solve_2x2: the matrix is singular")
-    y1 = _fma_py(-factor, b0, b1)
+    y1 = b1 - factor * b0  # forward substitution unfused, back substitution fused
     x1 = y1 / u11
     return _fma_py(-a01, x1, b0) / a00, x1
 
