@@ -93,6 +93,7 @@ from evaluation.scenario_runs import (
     write_scenario_run,
 )
 from evaluation.tables import SEED_RECORD_MILES, endurance_table
+from evaluation.warmup import warm_up
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.ray import LOCAL
 from sdc_gym.units import METERS_PER_MILE
@@ -396,6 +397,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     if args.wide and not console.is_terminal:  # logs: do not squeeze the wide table
         console = Console(width=260)
 
+    if workers > 1 and backend is None and len(specs) > 1:
+        warm_up(specs)  # compile once here, not in every worker (first run only)
     started = time.perf_counter()
     try:
         with external.planner_maps(args, probe.road):

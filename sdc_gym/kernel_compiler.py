@@ -29,14 +29,16 @@ than the kernel's own work for one env; the bound function skips it.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import hashlib
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 from numba import njit, typeof
-from numba.core import caching, config
+from numba.core import caching, config, event
 from numba.core.dispatcher import Dispatcher
 
 PACKAGE = Path(__file__).resolve().parent
@@ -155,3 +157,68 @@ class TypedCall:
 
 
 __all__ = ["PackageStampLocator", "TypedCall", "bind", "kernel", "machine_code", "package_stamp"]
+
+
+class _CompileCounter(event.Listener):
+    """Counts numba's compilations (cache misses only: a cache hit emits no event) of
+    this package's functions and reports each to ``on_compile(name, count)``."""
+
+    def __init__(self, on_compile: Callable[[str, int], None]) -> None:
+        self.count = 0
+        self._on_compile = on_compile
+
+    def on_start(self, happening: Any) -> None:
+        data = getattr(happening, "data", None)
+        dispatcher = data.get("dispatcher") if isinstance(data, dict) else None
+        function = getattr(dispatcher, "py_func", None)
+        module = getattr(function, "__module__", "") or ""
+        if module.startswith("sdc_gym"):
+            self.count += 1
+            self._on_compile(f"{module.rsplit('.', 1)[-1]}.{function.__name__}", self.count)
+
+    def on_end(self, happening: Any) -> None:
+        pass
+
+
+@contextlib.contextmanager
+def compile_progress(console: Any = None) -> Iterator[_CompileCounter]:
+    """Show numba compiling this package's kernels while the block runs.
+
+    The first run on a fresh checkout (or after a change to any kernel module) compiles
+    every kernel it uses, about a minute or two of CPU in all, and caches the machine code
+    in ``__pycache__``; later runs load it in a second or two and show nothing. On a
+    terminal a status line counts the kernels; elsewhere (logs, CI) one line says that
+    compiling has begun and one how long it took.
+    """
+    from rich.console import Console
+
+    console = console if console is not None else Console(stderr=True)
+    started = time.perf_counter()
+    status: Any = None
+
+    def on_compile(name: str, count: int) -> None:
+        nonlocal status
+        text = (f"compiling sdc-gym's kernels on first use (cached for later runs): "
+                f"{count} compiled, {time.perf_counter() - started:.0f} s, now {name}")
+        if console.is_terminal:
+            if status is None:
+                status = console.status(text)
+                status.start()
+            else:
+                status.update(text)
+        elif count == 1:
+            console.print("compiling sdc-gym's kernels on first use (a minute or two of "
+                          "CPU; cached for later runs) ...", highlight=False)
+
+    counter = _CompileCounter(on_compile)
+    event.register("numba:compile", counter)
+    try:
+        yield counter
+    finally:
+        event.unregister("numba:compile", counter)
+        if status is not None:
+            status.stop()
+        if counter.count:
+            console.print(f"compiled {counter.count} sdc-gym kernels in "
+                          f"{time.perf_counter() - started:.0f} s (cached for later runs)",
+                          highlight=False)

@@ -104,3 +104,36 @@ def test_cache_files_carry_the_stamp_and_files_of_other_stamps_are_pruned(tmp_pa
     kernel_compiler._prune_stale_files.cache_clear()
     kernel_compiler._prune_stale_files(str(tmp_path))
     assert kept.exists() and not any(path.exists() for path in stale)
+
+
+def test_compile_progress_counts_this_package_s_compilations_and_says_so() -> None:
+    import io
+
+    from numba import njit
+    from rich.console import Console
+
+    from sdc_gym.kernel_compiler import compile_progress
+
+    def twice(x: float) -> float:
+        return 2.0 * x
+
+    twice.__module__ = "sdc_gym.progress_probe"  # counted: one of the package's functions
+    compiled = njit(twice)  # no cache: it compiles on every run of the test
+
+    def outside(x: float) -> float:
+        return x + 1.0
+
+    other = njit(outside)  # another module's function: not counted
+    output = io.StringIO()
+    with compile_progress(Console(file=output, width=200)) as counter:
+        assert compiled(2.0) == 4.0
+        assert other(2.0) == 3.0
+        assert compiled(3.0) == 6.0  # already compiled: no second event
+    assert counter.count == 1
+    text = output.getvalue()
+    assert "compiling sdc-gym's kernels on first use" in text
+    assert "compiled 1 sdc-gym kernels in" in text
+    quiet = io.StringIO()
+    with compile_progress(Console(file=quiet)) as counter:
+        assert compiled(4.0) == 8.0
+    assert counter.count == 0 and quiet.getvalue() == ""

@@ -32,6 +32,8 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numpy.typing import ArrayLike, NDArray
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
+
 FloatArray = NDArray[np.float64]
 
 _LANES = 4  # the Haswell kernel's vector width in doubles
