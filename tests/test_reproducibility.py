@@ -117,16 +117,22 @@ def test_matmul_solve_and_inverse_known_answers() -> None:
         inverse([[1.0, 2.0], [2.0, 4.0]])
 
 
-def test_complex_abs_is_numpys_fused_kernel() -> None:
+def test_complex_abs_and_products_are_numpys_fused_kernels() -> None:
     assert exact_math.complex_abs(np.array([3 + 4j, 0j, -5e-3 + 12e-3j])).tolist() == [
         5.0, 0.0, 0.013]
+    assert exact_math.fused_product_sum(0.1, 10.0, -1.0, 1.0) == 5.551115123125783e-17
     from numpy._core._multiarray_umath import __cpu_features__
 
     if not __cpu_features__.get("AVX2") or not __cpu_features__.get("FMA3"):
         pytest.skip("numpy's fused complex kernel needs AVX2 and FMA on this processor")
-    parts = np.random.default_rng(0).normal(size=(2, 50_000))
-    z = parts[0] + 1j * parts[1]
+    parts = np.random.default_rng(0).normal(size=(4, 50_000))
+    z, w = parts[0] + 1j * parts[1], parts[2] + 1j * parts[3]
     assert np.array_equal(exact_math.complex_abs(z), np.abs(z))
+    product = z * w  # numpy's fused complex multiplication
+    assert np.array_equal(exact_math.fused_product_sum(z.real, w.imag, z.imag, w.real),
+                          product.imag)
+    assert np.array_equal(exact_math.fused_product_sum(z.real, w.real, -z.imag, w.imag),
+                          product.real)
 
 
 def test_built_in_roads_have_the_same_bits_everywhere() -> None:

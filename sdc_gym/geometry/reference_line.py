@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from sdc_gym.geometry.exact_math import atan2, complex_abs, power
+from sdc_gym.geometry.exact_math import atan2, complex_abs, fused_product_sum, power
 from sdc_gym.geometry.fixed_order import dot_rows
 from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
 from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
@@ -63,6 +63,17 @@ def _segment_lengths(spline: CubicSpline, knots: FloatArray) -> FloatArray:
     u = knots[:-1, None] + h[:, None] * _GL_NODES[None, :]
     speed = np.hypot(*np.moveaxis(spline(u, 1), -1, 0))
     return h * dot_rows(speed, _GL_WEIGHTS)
+
+
+def _cross(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> FloatArray:
+    """``(conj(a) * b).imag``, the z of the cross product a x b, as numpy rounds it on
+    x86-64-v3 processors (:func:`~sdc_gym.geometry.exact_math.fused_product_sum`), on any."""
+    return fused_product_sum(a.real, b.imag, -a.imag, b.real)
+
+
+def _dot(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> FloatArray:
+    """``(a * conj(b)).real``, the dot product of a and b, rounded the same way."""
+    return fused_product_sum(a.real, b.real, a.imag, b.imag)
 
 
 class ReferenceLine:
@@ -196,7 +207,7 @@ class ReferenceLine:
         c, t = self._local(self._param(s))
         velocity = self._velocity(c, t)
         acceleration = c[..., 6] * t + c[..., 5]
-        return (velocity.conj() * acceleration).imag / power(complex_abs(velocity), 3.0)
+        return _cross(velocity, acceleration) / power(complex_abs(velocity), 3.0)
 
     def frame(self, s: ArrayLike) -> tuple[FloatArray, FloatArray]:
         """Point and unit tangent at ``s`` in one pass (each with a trailing (x, y) axis)."""
@@ -219,7 +230,7 @@ class ReferenceLine:
         velocity = self._velocity(c, t)
         speed = complex_abs(velocity)
         offset = np.asarray(d, dtype=np.float64) * -1j
-        curvature = (velocity.conj() * (c[..., 6] * t + c[..., 5])).imag / power(speed, 3.0)
+        curvature = _cross(velocity, c[..., 6] * t + c[..., 5]) / power(speed, 3.0)
         return self._pair(self._point(c, t) + offset * velocity / speed), curvature
 
     def wrap_s(self, s: ArrayLike) -> FloatArray:
@@ -282,10 +293,9 @@ class ReferenceLine:
             c, t = self._local(u)
             offset = self._point(c, t) - p
             velocity = self._velocity(c, t)
-            conj_velocity = velocity.conj()
-            f = (offset * conj_velocity).real
-            fp = (velocity * conj_velocity).real + (
-                offset * (c[..., 6] * t + c[..., 5]).conj()).real
+            acceleration = c[..., 6] * t + c[..., 5]
+            f = _dot(offset, velocity)
+            fp = _dot(velocity, velocity) + _dot(offset, acceleration)
             step = np.maximum(np.minimum(f / fp, _MAX_NEWTON_STEP_M), -_MAX_NEWTON_STEP_M)
             u = np.mod(u - step, total)
             # Quadratic convergence: after a step under 1e-6 m the error is ~1e-12 m.
@@ -294,7 +304,7 @@ class ReferenceLine:
         c, t = self._local(u)
         velocity = self._velocity(c, t)
         # d is the offset's component along the right normal -i * tangent.
-        d = ((p - self._point(c, t)) * (1j * velocity.conj())).real / complex_abs(velocity)
+        d = _cross(p - self._point(c, t), velocity) / complex_abs(velocity)
         scale = self._param_scale
         moved = (np.mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
         return u / scale, d, moved
