@@ -2,6 +2,7 @@
 
     python benchmarks/reproducibility.py                    # every configuration
     python benchmarks/reproducibility.py --configs openblas=Sandybridge numpy=-X86_V3
+    python benchmarks/reproducibility.py --lowest           # the two farthest (CI)
     python benchmarks/reproducibility.py --list             # what would run, and why not
 
 Results must not depend on which kernels the libraries pick for the processor. Each
@@ -112,6 +113,18 @@ def configurations() -> list[tuple[str, dict[str, str] | None, str]]:
     return items
 
 
+def lowest_configurations() -> list[tuple[str, dict[str, str]]]:
+    """The oldest OpenBLAS core and numpy's lowest SIMD kernels this processor can run:
+    the two configurations farthest from the default (CI runs these)."""
+    cores = [core for core in OPENBLAS_CORES if _openblas_core_in_use(core) is not None]
+    features = _numpy_features()
+    groups = [group for group in NUMPY_FEATURE_GROUPS if group in features]
+    chosen = [(f"openblas={cores[0]}", {"OPENBLAS_CORETYPE": cores[0]})]
+    if groups:
+        chosen.append((f"numpy=-{groups[-1]}", {"NPY_DISABLE_CPU_FEATURES": groups[-1]}))
+    return chosen
+
+
 def run_recorded_tests(env: dict[str, str]) -> tuple[bool, str, float]:
     """Run the recorded-episode tests under ``env``: (passed, pytest's summary, seconds)."""
     start = time.perf_counter()
@@ -133,7 +146,11 @@ def main() -> None:
     parser.add_argument("--configs", nargs="*", default=None,
                         help="names from --list (default: every runnable one)")
     parser.add_argument("--list", action="store_true", help="list the configurations")
+    parser.add_argument("--lowest", action="store_true",
+                        help="only the oldest OpenBLAS core and numpy's lowest kernels")
     args = parser.parse_args()
+    if args.lowest:
+        args.configs = [name for name, _ in lowest_configurations()]
     items = configurations()
     names = [name for name, _, _ in items]
     if args.configs is not None:

@@ -172,22 +172,9 @@ def test_fixed_order_kalman_filter_is_filterpys_filter() -> None:
         ours.predict(u=np.ones((1, 1)), B=np.ones((4, 1)))
 
 
-def _lowest_configurations() -> list[tuple[str, dict[str, str]]]:
-    """The oldest OpenBLAS core and numpy's lowest SIMD group this processor runs."""
-    cores = [core for core in reproducibility.OPENBLAS_CORES
-             if reproducibility._openblas_core_in_use(core) is not None]
-    features = reproducibility._numpy_features()
-    groups = [g for g in reproducibility.NUMPY_FEATURE_GROUPS if g in features]
-    configurations = [(f"openblas={cores[0]}", {"OPENBLAS_CORETYPE": cores[0]})]
-    if groups:
-        configurations.append((f"numpy=-{groups[-1]}",
-                               {"NPY_DISABLE_CPU_FEATURES": groups[-1]}))
-    return configurations
-
-
 def test_fingerprints_are_the_same_under_other_kernels() -> None:
     expected = reproducibility_probe.fingerprints()
-    for name, env in _lowest_configurations():
+    for name, env in reproducibility.lowest_configurations():
         result = subprocess.run([sys.executable, str(ROOT / "tests" /
                                                      "reproducibility_probe.py")],
                                 env={**os.environ, **env}, capture_output=True, text=True,
