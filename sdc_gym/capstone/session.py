@@ -37,7 +37,7 @@ from sdc_gym.bridge.errors import PlannerLogFlooded
 from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES
 from sdc_gym.bridge.process import PlannerProcess, free_port
 from sdc_gym.capstone.client import StyxClient
-from sdc_gym.capstone.errors import StackStalled
+from sdc_gym.capstone.errors import StackDisconnected, StackStalled
 from sdc_gym.capstone.protocol import (
     BRAKE,
     CONTROL,
@@ -59,6 +59,7 @@ from sdc_gym.capstone.protocol import (
 from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
 PORT_PLACEHOLDER: Final = "{port}"
+DEATH_WAIT_S: Final = 1.0  # for the exit status of a stack whose connection ended
 
 
 @dataclass(frozen=True)
@@ -171,6 +172,15 @@ class CapstoneSession:
     def action(self, info: dict[str, Any]) -> NDArray[np.float32]:
         """Send this step's messages (``info``: the env's latest) and return the action
         to step with; raises a :class:`~sdc_gym.bridge.errors.BridgeError` on a fault."""
+        try:
+            return self._action(info)
+        except (StackDisconnected, StackStalled) as error:
+            # A stack that died closes its socket first: name the death, not its symptom.
+            if self.process is not None and self.process.wait_exit(DEATH_WAIT_S) is not None:
+                self.check_stack()
+            raise error
+
+    def _action(self, info: dict[str, Any]) -> NDArray[np.float32]:
         options = self.options
         self.check_stack()
         car = car_report(info, self._centre_offset, self._road_wheel_ratio)
@@ -261,6 +271,7 @@ def run_episode(env: Any, session: CapstoneSession, seed: int | None = None,
     wall = time.perf_counter()
     try:
         session.start()
+        wall = time.perf_counter()  # the stack's start-up is not part of the episode
         while True:
             _, _, terminated, truncated, info = env.step(session.action(info))
             if terminated or truncated:
