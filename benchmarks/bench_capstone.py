@@ -82,7 +82,7 @@ def exchanges(seconds: float, frames: int) -> None:
 
 def camera(frames: int) -> None:
     env = gym.make("sdc_gym/TrackLoop-v0", config={"track": TRACK, "light_config": LIGHTS})
-    _, info = env.reset(seed=0)
+    env.reset(seed=0)
     track = env.unwrapped.track
     states = env.unwrapped.world.state.light_states[0]
     # At the first stop line's approach: the light is in view, drawn at its largest.

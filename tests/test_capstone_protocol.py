@@ -151,3 +151,53 @@ def test_a_protocol_4_server_is_named_as_a_version_mismatch():
                                                    r"python-engineio 3\.\d+\.\d+ speaks "
                                                    r"protocol 3: install python-socketio>=5"):
             check_protocol("127.0.0.1", server.port)
+
+
+def test_the_image_is_a_base64_jpeg_of_the_configured_size():
+    """The camera at the original's 800 x 600 by default, and at a size asked for, as
+    base64 of a JPEG that bridge.py's ``PIL.Image.open(BytesIO(b64decode(...)))`` reads."""
+    import base64
+    import io
+
+    from PIL import Image
+
+    env = gym.make("sdc_gym/TrackLoop-v0", config={
+        "track": str(CAPSTONE / "wp_yaw_const.csv"),
+        "light_config": str(CAPSTONE / "sim_traffic_light_config.yaml")})
+    _, info = env.reset(seed=0)
+    with RawStyxServer() as server:
+        sizes = []
+        for width, height in ((800, 600), (400, 300)):
+            session = CapstoneSession(env, None, CapstoneOptions(
+                port=server.port, lockstep=True, image_every=1, image_width=width,
+                image_height=height))
+            try:
+                session.start()
+                session.action(info)
+            finally:
+                session.close()
+            frame = next(frame for frame in server.frames if frame.startswith('42["image"'))
+            server.frames.clear()
+            _, data = json.loads(frame[2:])
+            image = Image.open(io.BytesIO(base64.b64decode(data["image"])))
+            sizes.append((image.format, image.mode, image.size))
+    assert sizes == [("JPEG", "RGB", (800, 600)), ("JPEG", "RGB", (400, 300))]
+    env.close()
+
+
+def test_the_command_line_drives_a_running_server_and_writes_its_summary(tmp_path):
+    """``python -m sdc_gym.capstone`` against a server that answers every telemetry with
+    full throttle: the car drives off, the summary is written, exit status 0."""
+    from sdc_gym.capstone.__main__ import main
+
+    replies = ['42["throttle",{"throttle":"1.0"}]', '42["brake",{"brake":"0"}]',
+               '42["steer",{"steering_angle":"0.0"}]']
+    with RawStyxServer(replies=replies) as server:
+        status = main(["--port", str(server.port), "--lockstep", "--track",
+                       str(CAPSTONE / "wp_yaw_const.csv"), "--light-config",
+                       str(CAPSTONE / "sim_traffic_light_config.yaml"), "--max-duration", "2",
+                       "--telemetry-frames", "5", "--output", str(tmp_path / "summary.json")])
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert status == 0
+    assert summary["termination_reason"] == "max_duration"
+    assert summary["stack_exchanges"] == 20 and summary["distance"] > 0.5

@@ -126,7 +126,7 @@ def encode_image(frame: NDArray[np.uint8], image_format: str = "jpeg",
         raise ValueError(f"image format must be one of {IMAGE_FORMATS}, got {image_format!r}")
     buffer = io.BytesIO()
     options = {"quality": quality} if image_format == "jpeg" else {"compress_level": 1}
-    Image.fromarray(frame, "RGB").save(buffer, format=image_format.upper(), **options)
+    Image.fromarray(frame).save(buffer, format=image_format.upper(), **options)
     return base64.b64encode(buffer.getvalue()).decode("ascii")
 
 
