@@ -42,6 +42,7 @@ Written atomically:
                        the last seconds of the ego and nearby cars
     incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
+    stack_logs/        the output of capstone stacks (agents "capstone:COMMAND")
 
 Episodes run in worker processes (``--workers``), or as Ray tasks with ``--ray``: on a
 running cluster (``auto``, ``HOST:PORT``) or on a local one started for the run and shut

@@ -100,12 +100,15 @@ def test_real_time_is_the_default_and_paces_the_env_to_the_wall_clock(tmp_path):
      "did not handle telemetry message 11"),
     (("--fault", "disconnect", "--after", "10"), {}, "stack_disconnected",
      "closed the connection"),
+    # Real time, so that the held commands do not drive the car far in the silent second.
+    (("--fault", "mute", "--after", "10"), {"reply_timeout": 1.0, "lockstep": False},
+     "stack_stalled", "sent no command for"),
 ])
 def test_a_faulty_stack_ends_its_episode_with_a_named_reason(tmp_path, arguments, options,
                                                              reason, message):
     env = track_env(max_duration=60.0)
     session = CapstoneSession(env, standin(*arguments), CapstoneOptions(
-        lockstep=True, log_path=str(tmp_path / "stack.log"), **options))
+        **{"lockstep": True, "log_path": str(tmp_path / "stack.log"), **options}))
     result = run_episode(env, session, seed=0)
     assert result["termination_reason"] == reason
     assert message in result["abort_message"]

@@ -73,8 +73,9 @@ class CapstoneOptions:
         log_path, log_limit: the stack's output file and its largest size in bytes.
         startup_timeout: wall s for the server to accept the connection.
         reply_timeout: wall s; lock-step: for the server to handle one telemetry
-            message; real time: the longest silence of a stack that has started to
-            drive (while ``dbw_enable`` is on), before the episode ends ``stack_stalled``.
+            message; and the longest silence of a stack that has started to drive
+            (while ``dbw_enable`` is on; ``startup_timeout`` before its first command),
+            before the episode ends ``stack_stalled``.
         lockstep: step as fast as the stack keeps up instead of in real time.
         report_every, image_every: env steps between ``control``/``trafficlights`` and
             between ``image`` messages (0: never).
@@ -219,13 +220,16 @@ class CapstoneSession:
             time.sleep(due - now)
 
     def _check_silence(self, commands: dict[str, float], dbw_enabled: bool) -> None:
-        if self.options.lockstep:
-            return
+        """A stack whose nodes fell silent (its server may still answer): no command for
+        ``reply_timeout`` wall s once it drives, or ``startup_timeout`` s after connecting,
+        while ``dbw_enable`` is on (in manual mode a stack must be silent)."""
         self._driving = self._driving or (dbw_enabled and bool(commands))
         silence = self.client.silent_for()
-        if self._driving and dbw_enabled and silence > self.options.reply_timeout:
-            raise StackStalled(f"the stack sent no command for {silence:.1f} s while "
-                               "dbw_enable was on")
+        limit = self.options.reply_timeout if self._driving else self.options.startup_timeout
+        if dbw_enabled and silence > limit:
+            since = "its last one" if self._driving else "connecting"
+            raise StackStalled(f"the stack sent no command for {silence:.1f} s since {since} "
+                               "while dbw_enable was on")
 
     def image(self, info: dict[str, Any]) -> str:
         """The camera frame at the car's pose, encoded and in base64."""

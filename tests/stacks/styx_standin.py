@@ -16,7 +16,8 @@ waypoint loader does. Its commands leave as strings, as the bridge's ``str(...)`
 
 ``--fault KIND --after N`` misbehaves after N telemetry messages: ``die`` (exit code 3),
 ``garbage`` (a ``steer`` message whose angle is not a number), ``stall`` (the telemetry
-handler never returns), ``disconnect`` (the server drops the client); ``never_listen``
+handler never returns), ``disconnect`` (the server drops the client), ``mute`` (the
+server answers telemetry, the nodes publish nothing); ``never_listen``
 runs without ever listening. ``--spawn`` starts a child in a session of its own first
 (as roscore is) and prints ``spawned PID``.
 """
@@ -117,7 +118,7 @@ def main() -> None:
     parser.add_argument("--telemetry-frames", type=int, default=1,
                         help="physics frames between telemetry messages")
     parser.add_argument("--fault", default="none",
-                        choices=["none", "die", "garbage", "stall", "disconnect",
+                        choices=["none", "die", "garbage", "stall", "disconnect", "mute",
                                  "never_listen"])
     parser.add_argument("--after", type=int, default=0)
     parser.add_argument("--spawn", action="store_true")
@@ -155,6 +156,8 @@ def main() -> None:
                 eventlet.sleep(600)
             if args.fault == "disconnect":
                 sio.disconnect(sid)
+                return
+            if args.fault == "mute":  # the server answers, its nodes publish nothing
                 return
         if data["dbw_enable"] != state["dbw_enable"]:
             state["dbw_enable"] = data["dbw_enable"]
