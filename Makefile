@@ -10,7 +10,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[dev,ray]"
+	$(PY) -m pip install --quiet -e ".[dev,ray,capstone]"
 	touch $(STAMP)
 
 # The HTML report's test opens it in a real headless browser: Debian's chromium, installed
@@ -25,10 +25,24 @@ $(CHROMIUM):
 		exit 1; \
 	fi
 
+# The capstone's ROS 1 end-to-end test (tests/test_capstone_ros.py): Debian's ROS 1
+# packages, installed here when missing and root; otherwise the command is printed and
+# that test is skipped.
+ROSCORE ?= /usr/bin/roscore
+ROS_PACKAGES := ros-core python3-rospy catkin ros-message-generation libstd-msgs-dev \
+	libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs
+$(ROSCORE):
+	@if [ "$$(id -u)" = 0 ]; then \
+		apt-get -o DPkg::Lock::Timeout=600 update -qq && \
+		apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends $(ROS_PACKAGES); \
+	else \
+		echo "$(ROSCORE) is missing (the ROS test will be skipped): sudo apt-get install --no-install-recommends $(ROS_PACKAGES)"; \
+	fi
+
 evaluate: $(STAMP)  ## the main job: evaluate the reference agent(s) on the default env
 	$(PY) evaluate.py
 
-test: $(STAMP) $(CHROMIUM)  ## the test suite
+test: $(STAMP) $(CHROMIUM) $(ROSCORE)  ## the test suite
 	$(PY) -m pytest
 
 lint: $(STAMP)

@@ -42,6 +42,7 @@ Written atomically:
                        the last seconds of the ego and nearby cars
     incident_gallery/  per incident, top-down snapshots at -3, -2, -1 and 0 s
     planner_logs/      the output of external planners (agents "external:COMMAND")
+    stack_logs/        the output of capstone stacks (agents "capstone:COMMAND")
 
 Episodes run in worker processes (``--workers``), or as Ray tasks with ``--ray``: on a
 running cluster (``auto``, ``HOST:PORT``) or on a local one started for the run and shut
@@ -73,7 +74,7 @@ from typing import Any
 import gymnasium as gym
 from rich.console import Console
 
-from agents import external
+from agents import capstone, external
 from agents.registry import AGENT_KINDS, AGENTS, parse_agent_spec
 from evaluation import run_folders, statistics
 from evaluation.analysis import analyse, terminal_output
@@ -161,6 +162,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "incidents) and report pass/fail with the reason "
                              "(docs/scenarios.md; default 1 seed)")
     external.add_external_arguments(parser)
+    capstone.add_capstone_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
     parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
@@ -206,6 +208,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     args = parser.parse_args(argv)
     external.check_external_arguments(parser, args)
+    capstone.check_capstone_arguments(parser, args)
     if not args.incident_history >= 0:
         parser.error(f"--incident-history must be >= 0 s, got {args.incident_history}")
 
@@ -317,11 +320,19 @@ def episode_specs(args: argparse.Namespace, env_id: str,
     """One episode per (agent, seed), with the incident and external planner options."""
     return [EpisodeSpec(agent, env_id, seed, (external.external_env_config(env_config)
                                               if external.is_external(agent) else env_config),
-                        agent_options=({external.EXTERNAL_KIND: external.external_options(
-                            args, agent, seed)} if external.is_external(agent) else {}),
+                        agent_options=agent_options(args, agent, seed),
                         incident_history=args.incident_history,
                         stop_at_incident=args.stop_at_incident)
             for agent in args.agents for seed in args.seeds]
+
+
+def agent_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
+    """The options of an ``external:`` planner's or a ``capstone:`` stack's episode."""
+    if external.is_external(agent):
+        return {external.EXTERNAL_KIND: external.external_options(args, agent, seed)}
+    if capstone.is_capstone(agent):
+        return {capstone.CAPSTONE_KIND: capstone.capstone_options(args, agent, seed)}
+    return {}
 
 
 @dataclass(frozen=True)
@@ -382,6 +393,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
     workers = external.fixed_port_workers(args, args.agents, args.workers or os.cpu_count()
                                           or 1)
+    if capstone.fixed_port(args, args.agents):  # stacks on one port run one at a time
+        workers = 1
     backend = None
     if args.ray is not None:
         if external.fixed_port_workers(args, args.agents, 2) == 1:

@@ -60,6 +60,12 @@ def _external_agent(argument: str, env: gym.Env, **options: Any) -> Agent:
     return external_agent(argument, env, **options)
 
 
+def _capstone_agent(argument: str, env: gym.Env, **options: Any) -> Agent:
+    from agents.capstone import capstone_agent  # the Socket.IO client only when used
+
+    return capstone_agent(argument, env, **options)
+
+
 def _policy_agent(kind: str, argument: str, env: gym.Env) -> Agent:
     from agents.policy_agent import policy_agent  # SB3 and torch only when used
 
@@ -70,6 +76,10 @@ AGENT_KINDS: dict[str, AgentKindFactory] = {
     # A planner written for the original highway simulator, run per episode and driven
     # through its wire protocol: "external:./path_planning" (agents/external.py).
     "external": _external_agent,
+    # A capstone team's whole stack for the original track simulator, run per episode and
+    # driven through its styx server: "capstone:roslaunch launch/styx.launch"
+    # (agents/capstone.py).
+    "capstone": _capstone_agent,
     # Trained policies of the behavior-level envs, in the place of the rule-based behavior
     # layer: stable-baselines3 models ("dqn:agents/highway/policies/dqn_highway.zip") and
     # RLlib checkpoints ("rllib:runs/ppo_rllib/model") (agents/policy_agent.py).

@@ -19,11 +19,12 @@ from evaluation.report import REPORT_FILE, Report, ReportImage, write_report
 from evaluation.tables import verdict_lines
 
 PLANNER_LOGS = "planner_logs"  # written by external planners (agents.external.LOG_FOLDER)
+STACK_LOGS = "stack_logs"  # written by capstone stacks (agents.capstone.LOG_FOLDER)
 OWNED_NAMES: tuple[str, ...] = (
     files.EPISODES_FILE, files.AGENTS_FILE, files.COMPARISONS_FILE, files.SUMMARY_FILE,
     files.TRACES_FILE, files.INCIDENTS_FILE, plots.MEANS_FILE, plots.INCIDENTS_FILE,
     profiles.PROFILE_FILE, profiles.SPEED_TIME_FILE, incident_plots.INCIDENT_MAP_FILE,
-    incident_plots.GALLERY_FOLDER, REPORT_FILE, PLANNER_LOGS)
+    incident_plots.GALLERY_FOLDER, REPORT_FILE, PLANNER_LOGS, STACK_LOGS)
 """Every file and folder name an evaluation may write into its run folder."""
 
 

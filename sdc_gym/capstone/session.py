@@ -1,0 +1,299 @@
+"""One episode of a capstone stack: its process, the connection, and the messages of
+every env step.
+
+:class:`CapstoneSession` plays the original simulator for a ``sdc_gym/TrackLoop-v0`` env.
+At :meth:`~CapstoneSession.start` it launches the stack's command (if given) under the
+planner bridge's process machinery (:class:`~sdc_gym.bridge.process.PlannerProcess`: its
+own session below a subreaper, output in a capped log, the whole tree ended by
+:meth:`~CapstoneSession.close` and if the owner dies) and connects to its styx server.
+Each :meth:`~CapstoneSession.action` call is one env step: it sends that step's
+messages, built from the step's ``info`` and the env's lights
+(:mod:`sdc_gym.capstone.protocol`), and returns the action to step with, the latest
+value of each of the stack's three commands, clamped to the car's ranges as the
+original's car controller clamps them. Before the stack's first command the pedals are
+released and the wheel straight (the original car waits the same way).
+
+Timing: ``lockstep=False`` (default, the original's only mode) paces the env to wall time
+(a step is never taken before its simulated time) and sends telemetry without waiting;
+``lockstep=True`` waits after every telemetry message until the server has handled it
+(see :mod:`sdc_gym.capstone.client`) and runs as fast as the stack keeps up. Rates, in
+env steps: telemetry every step, ``control`` and ``trafficlights`` every
+``report_every`` steps, ``image`` every ``image_every`` steps (0: no camera, the
+default; the original's camera checkbox starts off).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Final
+
+import numpy as np
+from numpy.typing import NDArray
+
+from sdc_gym.bridge.errors import PlannerLogFlooded
+from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES
+from sdc_gym.bridge.process import PlannerProcess, free_port
+from sdc_gym.capstone.client import StyxClient
+from sdc_gym.capstone.errors import StackDisconnected, StackStalled
+from sdc_gym.capstone.protocol import (
+    BRAKE,
+    CONTROL,
+    DEFAULT_HOST,
+    DEFAULT_JPEG_QUALITY,
+    DEFAULT_PORT,
+    IMAGE,
+    IMAGE_FORMATS,
+    STEER,
+    TELEMETRY,
+    THROTTLE,
+    TRAFFIC_LIGHTS,
+    car_report,
+    control_fields,
+    encode_image,
+    telemetry_fields,
+    traffic_light_fields,
+)
+from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
+
+PORT_PLACEHOLDER: Final = "{port}"
+DEATH_WAIT_S: Final = 1.0  # for the exit status of a stack whose connection ended
+
+
+@dataclass(frozen=True)
+class CapstoneOptions:
+    """How a capstone episode runs (``evaluate.py``'s ``--stack-*`` flags).
+
+    Attributes:
+        host, port: the styx server's address; ``port=None``: a free port when the
+            command has ``{port}``, else 4567 like the original.
+        cwd: the stack's working directory (e.g. the team's ``ros`` folder).
+        log_path, log_limit: the stack's output file and its largest size in bytes.
+        startup_timeout: wall s for the server to accept the connection.
+        reply_timeout: wall s; lock-step: for the server to handle one telemetry
+            message; and the longest silence of a stack that has started to drive
+            (while ``dbw_enable`` is on; ``startup_timeout`` before its first command),
+            before the episode ends ``stack_stalled``.
+        lockstep: step as fast as the stack keeps up instead of in real time.
+        report_every, image_every: env steps between ``control``/``trafficlights`` and
+            between ``image`` messages (0: never).
+        image_width, image_height, image_format, image_quality: the camera frame.
+    """
+
+    host: str = DEFAULT_HOST
+    port: int | None = None
+    cwd: str | None = None
+    log_path: str | None = None
+    log_limit: int = DEFAULT_LOG_LIMIT_BYTES
+    startup_timeout: float = 30.0
+    reply_timeout: float = 5.0
+    lockstep: bool = False
+    report_every: int = 1
+    image_every: int = 0
+    image_width: int = 800
+    image_height: int = 600
+    image_format: str = "jpeg"
+    image_quality: int = DEFAULT_JPEG_QUALITY
+
+    def __post_init__(self) -> None:
+        for name in ("startup_timeout", "reply_timeout"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"CapstoneOptions.{name} must be > 0 s, got "
+                                 f"{getattr(self, name)!r}")
+        for name in ("report_every", "image_every"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ValueError(f"CapstoneOptions.{name} must be an int >= 0 steps, got "
+                                 f"{value!r}")
+        if self.report_every < 1:
+            raise ValueError(f"CapstoneOptions.report_every must be >= 1 step, got "
+                             f"{self.report_every}")
+        if self.image_format not in IMAGE_FORMATS:
+            raise ValueError(f"CapstoneOptions.image_format must be one of {IMAGE_FORMATS}, "
+                             f"got {self.image_format!r}")
+        if self.port is not None and not 0 < self.port < 65536:
+            raise ValueError(f"CapstoneOptions.port must be in 1..65535, got {self.port}")
+
+
+class CapstoneSession:
+    """A stack (``command``, or one already running at ``options.host:port``) driving
+    ``env`` (a ``TrackLoop-v0``); see the module docstring."""
+
+    def __init__(self, env: Any, command: str | None = None,
+                 options: CapstoneOptions | None = None) -> None:
+        self.options = options or CapstoneOptions()
+        unwrapped = env.unwrapped
+        self.env = unwrapped
+        setup = unwrapped.world.setup
+        self._centre_offset = float(setup.centre_offset)
+        self._road_wheel_ratio = float(unwrapped.params.road_wheel_ratio)
+        lock = float(unwrapped.max_steering_angle)
+        self._low = np.array([0.0, 0.0, -lock])
+        self._high = np.array([1.0, float(unwrapped.max_brake_torque), lock])
+        self._step_s = PHYSICS_DT * int(unwrapped.steps_per_action)
+        port = self.options.port
+        if port is None:
+            port = free_port() if command and PORT_PLACEHOLDER in command else DEFAULT_PORT
+        self.port = int(port)
+        self.process = (None if command is None else PlannerProcess(
+            command, cwd=self.options.cwd, port=self.port, log_path=self.options.log_path,
+            log_limit=self.options.log_limit))
+        self.client = StyxClient(self.options.host, self.port)
+        self._camera: Any = None
+        self._steps = 0
+        self._wall_start: float | None = None
+        self._driving = False  # the stack has sent a command while dbw is on
+
+    # ------------------------------------------------------------------ life cycle
+    def start(self) -> None:
+        """Start the stack (if a command was given) and connect to its server."""
+        if self.process is not None:
+            self.process.start()
+        self.client.connect(self.options.startup_timeout, alive=self.check_stack)
+
+    def check_stack(self) -> None:
+        """Raise when the stack's process died or flooded its log."""
+        if self.process is None:
+            return
+        if self.process.log_flooded:
+            raise PlannerLogFlooded(
+                f"the stack printed more than {self.process.log_limit} bytes; its log "
+                f"{self.process.log_path} keeps the beginning and the end")
+        self.process.check_alive()
+
+    def close(self) -> None:
+        """Disconnect and end the stack's whole process tree (safe to repeat)."""
+        self.client.close()
+        if self.process is not None:
+            self.process.stop()
+
+    # ------------------------------------------------------------------ one step
+    def action(self, info: dict[str, Any]) -> NDArray[np.float32]:
+        """Send this step's messages (``info``: the env's latest) and return the action
+        to step with; raises a :class:`~sdc_gym.bridge.errors.BridgeError` on a fault."""
+        try:
+            return self._action(info)
+        except (StackDisconnected, StackStalled) as error:
+            # A stack that died closes its socket first: name the death, not its symptom.
+            if self.process is not None and self.process.wait_exit(DEATH_WAIT_S) is not None:
+                self.check_stack()
+            raise error
+
+    def _action(self, info: dict[str, Any]) -> NDArray[np.float32]:
+        options = self.options
+        self.check_stack()
+        car = car_report(info, self._centre_offset, self._road_wheel_ratio)
+        if self._steps % options.report_every == 0:
+            self.client.emit(CONTROL, control_fields(car))
+            world = self.env.world
+            if len(self.env.track.light_yaw):
+                self.client.emit(TRAFFIC_LIGHTS, traffic_light_fields(
+                    self.env.track.light_positions, self.env.track.light_yaw,
+                    world.state.light_states[0]))
+        if options.image_every and self._steps % options.image_every == 0:
+            self.client.emit(IMAGE, {"image": self.image(info)})
+        telemetry = telemetry_fields(car)
+        if options.lockstep:
+            self.client.exchange(telemetry, options.reply_timeout)
+        else:
+            self._pace()
+            self.client.emit(TELEMETRY, telemetry)
+        self._steps += 1
+        commands = self.client.commands()
+        self._check_silence(commands, car.dbw_enabled)
+        path = self.client.take_drawline()
+        if path is not None:
+            self.env.set_debug_path(path)
+        action = np.array([commands.get(THROTTLE, 0.0), commands.get(BRAKE, 0.0),
+                           commands.get(STEER, 0.0)])
+        return np.clip(action, self._low, self._high).astype(np.float32)
+
+    def _pace(self) -> None:
+        """Real time: wait until the wall clock reaches this step's simulated time."""
+        now = time.perf_counter()
+        if self._wall_start is None:
+            self._wall_start = now
+        due = self._wall_start + self._steps * self._step_s
+        if due > now:
+            time.sleep(due - now)
+
+    def _check_silence(self, commands: dict[str, float], dbw_enabled: bool) -> None:
+        """A stack whose nodes fell silent (its server may still answer): no command for
+        ``reply_timeout`` wall s once it drives, or ``startup_timeout`` s after connecting,
+        while ``dbw_enable`` is on (in manual mode a stack must be silent)."""
+        self._driving = self._driving or (dbw_enabled and bool(commands))
+        silence = self.client.silent_for()
+        limit = self.options.reply_timeout if self._driving else self.options.startup_timeout
+        if dbw_enabled and silence > limit:
+            since = "its last one" if self._driving else "connecting"
+            raise StackStalled(f"the stack sent no command for {silence:.1f} s since {since} "
+                               "while dbw_enable was on")
+
+    def image(self, info: dict[str, Any]) -> str:
+        """The camera frame at the car's pose, encoded and in base64."""
+        if self._camera is None:
+            from sdc_gym.sensors.track_camera import CameraConfig, TrackCamera
+
+            options = self.options
+            base = CameraConfig(variation=False)
+            scale = options.image_width / base.width
+            config = CameraConfig(width=options.image_width, height=options.image_height,
+                                  fx=base.fx * scale, fy=base.fy * scale, variation=False)
+            self._camera = TrackCamera(config)
+        track = self.env.track
+        frame = self._camera.render(float(info["x"]), float(info["y"]), float(info["yaw"]),
+                                    track.light_positions, track.light_yaw,
+                                    self.env.world.state.light_states[0])
+        return encode_image(frame, self.options.image_format, self.options.image_quality)
+
+    def extras(self) -> dict[str, Any]:
+        """Figures of the connection for the episode's result."""
+        stats = self.client.stats
+        extras: dict[str, Any] = {
+            "stack_messages_sent": stats.sent,
+            "stack_commands_received": sum(stats.received.values()),
+            "stack_exchanges": stats.exchanges,
+            "stack_wait_time": stats.wait_time,
+            "stack_protocol": self.client.protocol,
+        }
+        if self.process is not None:
+            extras["stack_pid"] = self.process.pid
+            extras["stack_log"] = str(self.process.log_path)
+        return extras
+
+
+def run_episode(env: Any, session: CapstoneSession, seed: int | None = None,
+                ) -> dict[str, Any]:
+    """Drive one episode of ``env`` with ``session`` (started here, closed at the end);
+    the env's summary, with ``abort_reason`` and ``abort_message`` when a fault ended it."""
+    from sdc_gym.bridge.errors import BridgeError
+
+    _, info = env.reset(seed=seed)
+    result: dict[str, Any]
+    wall = time.perf_counter()
+    try:
+        session.start()
+        wall = time.perf_counter()  # the stack's start-up is not part of the episode
+        while True:
+            _, _, terminated, truncated, info = env.step(session.action(info))
+            if terminated or truncated:
+                result = dict(info["summary"])
+                break
+    except BridgeError as error:
+        result = dict(env.unwrapped.summary())
+        result["termination_reason"] = error.reason
+        result["abort_reason"], result["abort_message"] = error.reason, str(error)
+    finally:
+        session.close()
+    result.update(session.extras())
+    result["wall_time"] = time.perf_counter() - wall
+    sim = float(result.get("time", 0.0))
+    result["real_time_factor"] = sim / result["wall_time"] if result["wall_time"] else math.nan
+    return result
+
+
+def stack_log_path(folder: str | Path, name: str) -> str:
+    """A log file for a stack's output in ``folder``."""
+    return str(Path(folder) / f"{name}.log")
