@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.road_ends import RoadGoal
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
 from sdc_gym.geometry.collision import first_contacts
 from sdc_gym.geometry.exact_math import py_hypot
@@ -41,7 +42,6 @@ from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
-from sdc_gym.envs.road_ends import RoadGoal
 from sdc_gym.road.highway_map import ROAD_KINDS, HighwayMap, MapFormatError
 from sdc_gym.scenarios.world_episodes import CONFIG, EpisodeSettings
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig

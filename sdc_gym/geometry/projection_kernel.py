@@ -108,8 +108,8 @@ def is_lost(d: float, moved: float) -> bool:
 @kernel
 def project_points(coef_xy: NDArray[np.float64], knot_step: float, inverse_step: float,
                    last_segment: int, total_param: float, param_scale: float, length: float,
-                   closed: bool, x: NDArray[np.float64], y: NDArray[np.float64], s0: NDArray[np.float64],
-                   s: NDArray[np.float64], d: NDArray[np.float64],
+                   closed: bool, x: NDArray[np.float64], y: NDArray[np.float64],
+                   s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
                    moved: NDArray[np.float64]) -> int:
     """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``;
     returns how many the local search lost (:func:`is_lost`). The line comes as the
