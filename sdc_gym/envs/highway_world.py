@@ -271,7 +271,7 @@ class HighwayWorld:
         ``scenario``: the config's (the default), ``None`` (random traffic), or a scenario
         (a file path, a mapping or a :class:`~sdc_gym.scenarios.model.Scenario`).
         """
-        self.goal.reset_at(env)
+        self.goal.reset_at(env, self.start_xy)
         if self.episodes.reset(self, env, rng, scenario):
             return
         self.rngs[env] = rng
@@ -367,7 +367,7 @@ class HighwayWorld:
         stopped = self.episodes.record(self, incidents, self.d)
         terminated = collision & self.config["terminate_on_collision"]
         if self.goal.active:  # an open road: its goal, not laps
-            lapped = ~terminated & self.goal.record(s, metrics.steps, self.rules.dt)
+            lapped = ~terminated & self.goal.record(xy, s, metrics.steps, self.rules.dt)
         else:
             lapped = ~terminated & (metrics.laps >= self.config["laps"])
         terminated = terminated | lapped | stopped
@@ -376,7 +376,7 @@ class HighwayWorld:
         for env in np.flatnonzero(terminated | truncated).tolist():
             self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
                                      and self.config["terminate_on_collision"]
-                                     else (self.goal.kind if self.goal.active
+                                     else (self.goal.reason(env) if self.goal.active
                                            else "laps_completed") if lapped[env]
                                      else self.episodes.reason(env) or "max_duration")
         return StepResult(reward, terminated, truncated, incidents)

@@ -15,10 +15,15 @@ kernel each. The conventions:
   and the traffic's range nothing ever comes around: a fold of a difference is the
   difference itself (to ~1e-12 m, the rounding of adding half a power of two).
 * **End conditions.** The smooth line is a *natural* cubic spline (zero curvature at both
-  ends) and beyond the last waypoint it runs on as a straight run-out along the end
-  tangent, one extra exactly linear segment row: position, heading and curvature (0) are
-  continuous into it, so cars that drive off the end, or a path that looks past it, stay
-  on a sane line instead of an extrapolated cubic. Nothing is ever placed behind s = 0
+  ends; also the default of ``tk::spline``, the spline library of most participants'
+  planners). Real maps end in a few uneven chords (the final Bosch map turns 7 degrees
+  between its first two): a not-a-knot end would carry that kink's curvature on and tilt
+  the start 11 degrees, where the natural end stays within a degree of the chords (on a
+  constant 600 m bend it ends 0.6 degrees short of the arc's tangent). Beyond the last
+  waypoint the line runs on as a straight run-out along the end tangent, one extra
+  exactly linear segment row: position, heading and curvature (0) are continuous into
+  it, so cars that drive off the end, or a path that looks past it, stay on a sane line
+  instead of an extrapolated cubic. Nothing is ever placed behind s = 0
   (the ego starts ahead of it, traffic spawns within ``[0, end_s]``, everything drives
   forward); a projection there clamps to s = 0 (:mod:`~sdc_gym.geometry.projection_kernel`).
 """
