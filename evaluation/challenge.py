@@ -1,0 +1,85 @@
+"""Timed runs on open roads (the Udacity-Bosch Challenge): the time, its interval, a verdict.
+
+An episode on an open road with a ``distance_target`` ends with ``summary["goal"]``
+(:mod:`sdc_gym.envs.road_ends`): whether and in which frame the target was driven. The
+challenge's rules (udacity/Bosch-Challenge README) read it three ways, per run:
+
+* ``finished in T s``: the target driven within the time limit, without incident;
+* ``invalid: <kind> at <s> m``: the first incident of any kind ends the run (the
+  challenge's simulator stopped there; the env does with ``stop_at_incident``);
+* ``invalid: over <limit> s``: the time limit passed first (360 s in the challenge).
+
+Per agent the table gives the runs finished, the mean challenge time over the finished
+runs with its 95 % bootstrap interval over seeds, and the best time; the verdict of each
+run is in ``episodes.csv`` (``challenge_verdict``) and in the table's caption.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from evaluation import statistics
+
+# evaluation.tables imports evaluation.summary (through its verdicts), which imports this
+# module for its columns: the table's helpers are imported where the table is built.
+
+
+def is_timed(run: dict[str, Any]) -> bool:
+    """Whether ``run`` (an episode's summary) is a timed run to a distance target."""
+    goal = run.get("goal")
+    return isinstance(goal, dict) and goal.get("distance_target") is not None
+
+
+def verdict(run: dict[str, Any]) -> str:
+    """The run's reading by the challenge's rules (see the module docstring)."""
+    goal = run["goal"]
+    incidents = run.get("incident_log") or []
+    if incidents:
+        first = incidents[0]
+        return f"invalid: {first['kind']} at {first['s']:.0f} m ({first['time']:.2f} s)"
+    if goal["reached"]:
+        return f"finished in {goal['time']:.2f} s"
+    if run.get("termination_reason") == "road_end":
+        return "invalid: the road ended before the target"
+    return f"invalid: over {run.get('time', 0.0):.0f} s"
+
+
+def finished(run: dict[str, Any]) -> bool:
+    """Finished within the rules: the target reached, no incident on the way."""
+    return bool(run["goal"]["reached"]) and not run.get("incident_log")
+
+
+def columns(runs: Sequence[dict[str, Any]],
+            settings: statistics.Settings = statistics.DEFAULT_SETTINGS) -> dict[str, Any]:
+    """An agent's challenge columns: runs finished, the mean time of those with its
+    interval, the best time."""
+    times = np.array([run["goal"]["time"] for run in runs if finished(run)], dtype=np.float64)
+    interval = statistics.mean_interval(times, "challenge_time", settings)
+    return {"challenge_finished": len(times), "challenge_runs": len(runs),
+            "challenge_time": interval.value, "challenge_time_ci": interval.ci(),
+            "challenge_best_time": float(times.min()) if len(times) else None,
+            "challenge_verdicts": [[run.get("seed"), verdict(run)] for run in runs]}
+
+
+def table(rows: list[dict[str, Any]]) -> Any:
+    """Per agent: finished runs, mean challenge time [95 % CI], best; the verdict of
+    every run in the caption (agent seed: verdict)."""
+    from evaluation.tables import TableData, number, with_interval
+
+    lines = [f"{row['label']} seed {seed}: {text}" for row in rows
+             if "challenge_time" in row for seed, text in row["challenge_verdicts"]]
+    result = TableData(title="challenge time (the target's distance, without incident)",
+                       caption="; ".join(lines))
+    for header, left in (("agent", True), ("finished", False), ("time s [95% CI]", False),
+                         ("best s", False)):
+        result.add_column(header, left)
+    for row in rows:
+        if "challenge_time" not in row:
+            continue
+        result.add_row(row["label"], f"{row['challenge_finished']}/{row['challenge_runs']}",
+                       with_interval(row["challenge_time"], row["challenge_time_ci"], 2),
+                       number(row["challenge_best_time"], 2))
+    return result
