@@ -8,6 +8,7 @@ column is the sum of chord lengths the original's telemetry rule adds up.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -263,3 +264,22 @@ def test_env_ends_at_the_road_end() -> None:
     assert info["summary"]["is_success"]
     # The telemetry's s past the file's last s: no wrap to 0.
     assert info["telemetry"]["s"] > road.waypoints[-1, 2] - 1.0
+
+
+def test_the_final_preset_places_the_same_traffic_whatever_the_seed() -> None:
+    import yaml
+
+    from tests.test_batched import ROOT
+
+    preset = yaml.safe_load((ROOT / "configs" / "highway_bosch_final.yaml").read_text())
+    config = {**preset["config"], "map": str(BOSCH_FINAL),
+              "scenario": str(ROOT / preset["config"]["scenario"])}
+    env = gym.make(preset["env"], config=config)
+    first, _ = env.reset(seed=0)
+    again, _ = env.reset(seed=123)
+    for key, value in first.items():
+        np.testing.assert_array_equal(value, again[key])
+    scenario = yaml.safe_load(Path(config["scenario"]).read_text())
+    np.testing.assert_array_equal(np.sort(first["sensor_fusion"][:, 5]),
+                                  np.sort([float(car["s"]) for car in scenario["cars"]]))
+    assert first["ego"][2:4].tolist() == [OPEN_START_S, 6.0]
