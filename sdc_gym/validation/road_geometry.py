@@ -91,7 +91,8 @@ def check_loop_points(xy: NDArray[np.float64], where: str, error: type[Exception
         raise error(f"{where}: not a closed loop: the last point is {closing:.1f} m from the "
                     f"first, {100 * closing / length:.0f} % of the loop's {length:.0f} m and "
                     f"{closing / longest:.0f} x its longest step (at most "
-                    f"{100 * MAX_CLOSING_FRACTION:g} % or {MAX_CLOSING_STEPS:g} x): a file "
+                    f"{100 * MAX_CLOSING_FRACTION:g} %, or {MAX_CLOSING_STEPS:g} x and half "
+                    "the open length): a file "
                     "runs once around a loop and ends near its start (an open road's ends "
                     "do not meet: say road: open)")
     width = float(np.linalg.svd(xy - xy.mean(axis=0), compute_uv=False)[-1]) / math.sqrt(
