@@ -14,7 +14,7 @@ from typing import Any
 
 from rich.console import Console
 
-from evaluation import challenge, statistics, tables
+from evaluation import statistics, tables
 from evaluation.summary import AgentSamples, agent_samples, aggregate
 from evaluation.verdicts import Comparison, compare_all
 
@@ -44,7 +44,7 @@ class Analysis:
         if any("stops" in row for row in self.rows):
             result.append(tables.track_table(self.rows))
         if any("challenge_time" in row for row in self.rows):
-            result.append(challenge.table(self.rows))
+            result.append(tables.challenge_table(self.rows))
         return result
 
 

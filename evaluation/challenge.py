@@ -9,9 +9,10 @@ challenge's rules (udacity/Bosch-Challenge README) read it three ways, per run:
   challenge's simulator stopped there; the env does with ``stop_at_incident``);
 * ``invalid: over <limit> s``: the time limit passed first (360 s in the challenge).
 
-Per agent the table gives the runs finished, the mean challenge time over the finished
-runs with its 95 % bootstrap interval over seeds, and the best time; the verdict of each
-run is in ``episodes.csv`` (``challenge_verdict``) and in the table's caption.
+Per agent the table (:func:`evaluation.tables.challenge_table`) gives the runs
+finished, the mean challenge time over the finished runs with its 95 % bootstrap interval
+over seeds, and the best time; the verdict of each run is in ``episodes.csv``
+(``challenge_verdict``) and in the table's caption.
 """
 
 from __future__ import annotations
@@ -22,9 +23,6 @@ from typing import Any
 import numpy as np
 
 from evaluation import statistics
-
-# evaluation.tables imports evaluation.summary (through its verdicts), which imports this
-# module for its columns: the table's helpers are imported where the table is built.
 
 
 def is_timed(run: dict[str, Any]) -> bool:
@@ -62,27 +60,6 @@ def columns(runs: Sequence[dict[str, Any]],
             "challenge_time": interval.value, "challenge_time_ci": interval.ci(),
             "challenge_best_time": float(times.min()) if len(times) else None,
             "challenge_verdicts": [[run.get("seed"), verdict(run)] for run in runs]}
-
-
-def table(rows: list[dict[str, Any]]) -> Any:
-    """Per agent: finished runs, mean challenge time [95 % CI], best; the verdict of
-    every run in the caption (agent seed: verdict)."""
-    from evaluation.tables import TableData, number, with_interval
-
-    lines = [f"{row['label']} seed {seed}: {text}" for row in rows
-             if "challenge_time" in row for seed, text in row["challenge_verdicts"]]
-    result = TableData(title="challenge time (the target's distance, without incident)",
-                       caption="; ".join(lines))
-    for header, left in (("agent", True), ("finished", False), ("time s [95% CI]", False),
-                         ("best s", False)):
-        result.add_column(header, left)
-    for row in rows:
-        if "challenge_time" not in row:
-            continue
-        result.add_row(row["label"], f"{row['challenge_finished']}/{row['challenge_runs']}",
-                       with_interval(row["challenge_time"], row["challenge_time_ci"], 2),
-                       number(row["challenge_best_time"], 2))
-    return result
 
 
 def lower_bound_time(distance: float, speed_limit: float, max_acceleration: float,

@@ -31,15 +31,12 @@ kernel each. The conventions:
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
-
-if TYPE_CHECKING:  # the line is built in place; no import at run time (no circle)
-    from sdc_gym.geometry.reference_line import ReferenceLine
 
 FloatArray = NDArray[np.float64]
 
@@ -68,11 +65,13 @@ def _segment_lengths(spline: CubicSpline, knots: FloatArray) -> FloatArray:
     return h * (speed * weights).sum(axis=-1)
 
 
-def build_open_line(line: ReferenceLine, points: FloatArray, resample_step: float,
+def build_open_line(line: Any, points: FloatArray, resample_step: float,
                     newton_iterations: int) -> None:
     """Fill ``line``'s attributes as an open line through ``points`` (validated ``(n, 2)``,
     n >= 3, consecutive points distinct), as ``ReferenceLine.__init__`` does for a loop:
-    the same arc-length resampling, the same coefficient layout, plus the run-out row."""
+    the same arc-length resampling, the same coefficient layout, plus the run-out row.
+    ``line`` is the ``ReferenceLine`` being built (typed ``Any``: this module, its open
+    half, does not import it even for typing, so no import circle)."""
     from sdc_gym.geometry.projection_kernel import LineGeometry
 
     chord = np.hypot(*np.diff(points, axis=0).T)
