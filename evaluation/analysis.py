@@ -43,6 +43,8 @@ class Analysis:
             result.append(tables.incidents_table(self.rows))
         if any("stops" in row for row in self.rows):
             result.append(tables.track_table(self.rows))
+        if any("challenge_time" in row for row in self.rows):
+            result.append(tables.challenge_table(self.rows))
         return result
 
 

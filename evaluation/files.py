@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from evaluation import challenge
 from evaluation.episodes import REPORTS_KEY, TRACE_KEY, EpisodeTrace
 from evaluation.summary import has_stop_lines, incident_kinds
 
@@ -99,7 +100,8 @@ def agent_rows_csv(rows: list[dict[str, Any]]) -> str:
     flat_rows = []
     for row in rows:
         flat = _flat_intervals({key: value for key, value in row.items()
-                                if key not in ("incidents", "incident_rates")})
+                                if key not in ("incidents", "incident_rates",
+                                               "challenge_verdicts")})
         flat["seeds"] = " ".join(map(str, row["seeds"]))
         for kind in kinds:
             flat[f"incidents_{kind}"] = row["incidents"].get(kind, 0)
@@ -127,6 +129,8 @@ def write_results(output: Path, episodes: list[dict[str, Any]], rows: list[dict[
                *[f"incidents_{kind}" for kind in kinds], "max_acceleration",
                "max_jerk", "max_raw_acceleration", "max_raw_jerk", "is_success",
                "termination_reason", "env_steps", "wall_time"]
+    if any(challenge.is_timed(episode) for episode in episodes):
+        columns += ["challenge_time", "challenge_verdict"]
     if has_stop_lines(episodes):
         columns += ["red_light_violations", "stop_count", "max_overshoot",
                     "rms_cross_track_error", "max_cross_track_error", "max_lateral_acceleration"]
@@ -138,6 +142,10 @@ def write_results(output: Path, episodes: list[dict[str, Any]], rows: list[dict[
             flat[f"incidents_{kind}"] = episode["incidents"].get(kind, 0)
         if "stops" in episode:
             flat["stop_count"] = len(episode["stops"])
+        if challenge.is_timed(episode):
+            flat["challenge_time"] = episode["goal"]["time"] if challenge.finished(
+                episode) else ""
+            flat["challenge_verdict"] = challenge.verdict(episode)
         flat_episodes.append(flat)
     comparisons = comparisons or []
     written = [output / EPISODES_FILE, output / AGENTS_FILE]

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from agents.registry import agent_label
-from evaluation import statistics
+from evaluation import challenge, statistics
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.units import METERS_PER_MILE
 
@@ -166,5 +166,8 @@ def aggregate(episodes: Iterable[dict[str, Any]],
         }
         if has_stop_lines(runs):
             row.update(_track_columns(runs))
+        if any(challenge.is_timed(run) for run in runs):  # open roads' timed runs
+            row.update(challenge.columns([run for run in runs if challenge.is_timed(run)],
+                                         settings))
         rows.append(row)
     return rows

@@ -250,3 +250,23 @@ def duration(seconds: float) -> str:
     minutes, rest = divmod(round(seconds), 60)
     hours, minutes = divmod(minutes, 60)
     return f"{hours}:{minutes:02d}:{rest:02d}" if hours else f"{minutes}:{rest:02d}"
+
+
+def challenge_table(rows: list[dict[str, Any]]) -> TableData:
+    """Timed open-road runs (:mod:`evaluation.challenge`'s columns): per agent the runs
+    finished, the mean challenge time [95 % CI], the best; every run's verdict in the
+    caption (agent seed: verdict)."""
+    lines = [f"{row['label']} seed {seed}: {text}" for row in rows
+             if "challenge_time" in row for seed, text in row["challenge_verdicts"]]
+    result = TableData(title="challenge time (the target's distance, without incident)",
+                       caption="; ".join(lines))
+    for header, left in (("agent", True), ("finished", False), ("time s [95% CI]", False),
+                         ("best s", False)):
+        result.add_column(header, left)
+    for row in rows:
+        if "challenge_time" not in row:
+            continue
+        result.add_row(row["label"], f"{row['challenge_finished']}/{row['challenge_runs']}",
+                       with_interval(row["challenge_time"], row["challenge_time_ci"], 2),
+                       number(row["challenge_best_time"], 2))
+    return result

@@ -193,3 +193,69 @@ def test_single_env_reproduces_the_recorded_scalar_episodes(name: str) -> None:
     scenario = {**scenario, "steps": recorded["steps"]}
     result = record_episodes.run(scenario)
     assert record_episodes.chain(result["steps"]) == recorded["digest"]
+
+
+BOSCH1 = ROOT.parent / "shared" / "data" / "udacity" / "bosch" / "highway_map_bosch1.csv"
+
+
+def test_open_road_path_level_batch_equals_single_envs() -> None:
+    """The Bosch Challenge's open road, as the loop's test above: env i of a batch is the
+    single env with seed i, observation for observation, with the challenge's stop at the
+    first incident and its timed goal (a 150 m target, reached by both envs)."""
+    config = {"map": str(BOSCH1), "traffic": {"car_count": 12}, "max_duration": 30.0,
+              "distance_target": 150.0, "stop_at_incident": True}
+    seeds = [7, 8]
+    vector = gym.make_vec("sdc_gym/HighwayLoop-v0", num_envs=2,
+                          vectorization_mode="vector_entry_point", config=config,
+                          full_info=True)
+    obs, _ = vector.reset(seed=seeds[0])
+    singles = [gym.make("sdc_gym/HighwayLoop-v0", config=config) for _ in seeds]
+    single_obs = [env.reset(seed=seed)[0] for env, seed in zip(singles, seeds, strict=True)]
+    for key, value in single_obs[1].items():
+        np.testing.assert_array_equal(obs[key][1], value)
+    drivers = [LaneKeepingDriver(env.unwrapped.road) for env in singles]
+    points = vector.unwrapped.world.path_points
+    ended = [False, False]
+    for _ in range(600):
+        actions = np.zeros((2, points, 2))
+        paths = [driver.act(single_obs[i]) for i, driver in enumerate(drivers)]
+        for i, path in enumerate(paths):
+            actions[i, :len(path)] = path
+            actions[i, len(path):] = path[-1]
+        obs, reward, terminated, truncated, info = vector.step(actions)
+        for i, env in enumerate(singles):
+            single_obs[i], r, te, tr, single_info = env.step(paths[i])
+            assert reward[i] == r and (terminated[i], truncated[i]) == (te, tr)
+            for key, value in single_obs[i].items():
+                np.testing.assert_array_equal(obs[key][i], value)
+            if te or tr:
+                ended[i] = True
+                assert env_info(info, i)["summary"] == single_info["summary"]
+                assert single_info["summary"]["termination_reason"] in (
+                    "distance_target", "stop_at_incident")
+        if terminated.any() or truncated.any():
+            break
+    assert any(ended)
+
+
+def test_open_road_behavior_batch_equals_single_envs() -> None:
+    config = {"highway": {"map": str(BOSCH1), "max_duration": 20.0}}
+    seeds = [5, 6, 7]
+    vector = gym.make_vec("sdc_gym/HighwayLoopBehavior-v0", num_envs=len(seeds),
+                          vectorization_mode="vector_entry_point", config=config)
+    obs, _ = vector.reset(seed=seeds[0])
+    singles = _singles(seeds, config)
+    first = [env.reset(seed=seed)[0] for env, seed in zip(singles, seeds, strict=True)]
+    np.testing.assert_array_equal(obs, np.stack(first))
+    rng = np.random.default_rng(3)
+    for _ in range(80):
+        actions = _actions(rng, len(seeds))
+        obs, reward, terminated, truncated, _ = vector.step(actions)
+        for i, env in enumerate(singles):
+            expected, r, te, tr, _ = env.step(int(actions[i]))
+            assert reward[i] == r and (terminated[i], truncated[i]) == (te, tr)
+            np.testing.assert_array_equal(obs[i], expected)
+        if terminated.any() or truncated.any():
+            break
+    # The open road's s, not a loop's: every ego still near the start of 5.1 km.
+    assert all(0.0 < env.unwrapped.batch.world.s[0] < 1000.0 for env in singles)

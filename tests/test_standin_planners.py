@@ -53,6 +53,34 @@ def test_a_standin_drives_a_clean_lap_of_the_original_map_through_the_socket(pla
     assert result["planner_exchanges"] == result["env_steps"]
 
 
+BOSCH1 = HIGHWAY_MAP_FILE.parents[1] / "bosch" / "highway_map_bosch1.csv"
+
+
+def test_a_bosch_walkthrough_drives_the_open_road_through_the_socket(tmp_path):
+    """The Bosch Challenge's rules (stop at the first incident, a distance target), a
+    1 km target to keep the test short: the planner reads ``highway_map_bosch1.csv`` from
+    its own data folder, unchanged through the bridge, and gets there without incident."""
+    build = tmp_path / "build"
+    build.mkdir()
+    command = shlex.join([sys.executable, str(PLANNERS / "bosch_walkthrough_planner.py"),
+                          "--port", "{port}", "--map", "../data/highway_map_bosch1.csv"])
+    config = external_env_config({"map": str(BOSCH1), "road": "open",
+                                  "distance_target": 1000.0, "stop_at_incident": True,
+                                  "max_duration": 120.0, **lockstep_config(3)})
+    spec = EpisodeSpec(f"external:{command}", HIGHWAY, 4, config, trace_points=0,
+                       agent_options={"external": {
+                           "cwd": str(build), "map_export": "../data/highway_map_bosch1.csv",
+                           "log_path": str(tmp_path / "planner.log")}})
+    result = run_episode(spec)
+    assert not (tmp_path / "data" / "highway_map_bosch1.csv").exists()
+    assert result["termination_reason"] == "distance_target", result.get("abort_message")
+    assert result["incident_total"] == 0, result["incident_log"]
+    # From rest at the walkthrough's 0.224 mph per message (5 m/s^2) to 49.5 mph, then
+    # cruise: 1 km in about 50 s (45.3 s at 22.1 m/s plus the 4.4 s ramp's lost half).
+    assert 45.0 < result["goal"]["time"] < 80.0
+    assert result["planner_exchanges"] == result["env_steps"]
+
+
 def folded(difference: np.ndarray, loop: float) -> np.ndarray:
     return (difference + loop / 2) % loop - loop / 2
 

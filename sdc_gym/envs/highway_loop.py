@@ -125,10 +125,10 @@ class HighwayLoopEnv(TopDownRenderEnv):
     lists the events on the road with their kinds and the ids of their rows.
 
     s is arc length along the exact reference line (0 at the first map waypoint, wrapping
-    at the loop length); d is the offset to the right of the yellow centre line, so lane
-    ``i`` is centred at ``d = 2 + 4 i``. The observation is always in this exact frame:
-    the env's own agents (the FSM planner, the behavior envs' perception, the committed
-    policies) read it, whatever the ``frenet`` setting.
+    at the loop length; on an open road it never wraps); d is the offset to the right of
+    the yellow centre line, so lane ``i`` is centred at ``d = 2 + 4 i``. The observation
+    is always in this exact frame: the env's own agents (the FSM planner, the behavior
+    envs' perception, the committed policies) read it, whatever the ``frenet`` setting.
 
     ## Telemetry
 
@@ -158,7 +158,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
     an empty path: on the original map at (909.48, 1128.67) facing +x (yaw 0) like the
     original's car, on the built-in maps (and at a ``start_s``/``start_d`` of the config)
     facing along the road. It keeps that heading until a path moves it. Traffic is placed
-    around it from the seed.
+    around it from the seed. On an open road (a map whose ends do not meet, ``road``;
+    ``docs/bosch.md``) it stands in the middle lane 5 m past the first waypoint, facing
+    along the road, with every car on the road ahead of it or beside it.
 
     ## Episode End
 
@@ -166,6 +168,9 @@ class HighwayLoopEnv(TopDownRenderEnv):
     to count collisions and drive on, like the original and like ``evaluate.py`` does for
     external planners), ``laps`` laps completed (``is_success``), or the first incident of
     a kind ``stop_at_incident`` lists (``True``: any; the reason ``stop_at_incident``).
+    On an open road, no laps: ``distance_target`` m driven (reason ``distance_target``,
+    ``is_success``) or the road's end (``road_end``; a success without a target), the
+    frame's time in ``summary["goal"]``.
     Truncated: ``max_duration`` simulated seconds (a scenario's ``duration``, reason
     ``scenario_end``; its success conditions are ``is_success`` and ``summary["scenario"]``
     has the verdict and its reason). The final ``info``
@@ -192,7 +197,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
 
     * v0: initial version; later, without changing any default episode: scenarios, road
       events (``road_events``), buses, vans and semi-trailers (``traffic.vehicle_mix``)
-      and ``stop_at_incident``.
+      and ``stop_at_incident``; open roads (``road``, ``distance_target``).
     """
 
     DEFAULT_CONFIG: ClassVar[dict[str, Any]] = HIGHWAY_DEFAULTS

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.config import ConfigError, require, resolve_config
+from sdc_gym.envs.road_ends import RoadGoal
 from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
 from sdc_gym.geometry.collision import first_contacts
 from sdc_gym.geometry.exact_math import py_hypot
@@ -41,7 +42,7 @@ from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
-from sdc_gym.road.highway_map import HighwayMap, MapFormatError
+from sdc_gym.road.highway_map import ROAD_KINDS, HighwayMap, MapFormatError
 from sdc_gym.scenarios.world_episodes import CONFIG, EpisodeSettings
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig
 from sdc_gym.traffic import IDMParameters, TrafficConfig
@@ -84,10 +85,12 @@ def _to_tuple(value: Any) -> Any:
 
 HIGHWAY_DEFAULTS: dict[str, Any] = {
     "map": "default",            # built-in name ("default", "oval") or path to x y s dx dy
+    "road": "auto",              # "auto" (loop or open road by its ends), "loop", "open"
     "path_points": 50,           # capacity of the action path (points)
     "steps_per_action": 3,       # physics frames (0.02 s) per env step
     "latency_steps": None,       # frames before a path takes effect; None = steps_per_action
-    "laps": 1,                   # laps for success
+    "laps": 1,                   # laps for success (a loop)
+    "distance_target": None,     # m past the start for success on an open road; None: its end
     "max_duration": 600.0,       # s of simulated time before truncation
     "terminate_on_collision": True,
     "start_s": None,             # m; None = the map's start (124.8336)
@@ -191,8 +194,10 @@ class HighwayWorld:
         require(cfg["frenet"] in FRENET_CONVENTIONS, owner, "frenet",
                 f"one of {list(FRENET_CONVENTIONS)}", cfg["frenet"])
         self.envs = envs
+        require(cfg["road"] in ROAD_KINDS, owner, "road", f"one of {list(ROAD_KINDS)}",
+                cfg["road"])
         try:
-            self.road: HighwayMap = get_highway_map(cfg["map"])
+            self.road: HighwayMap = get_highway_map(cfg["map"], cfg["road"])
         except MapFormatError as error:
             raise ConfigError(f"{owner}: config key 'map': {error}") from None
         check_highway_start(cfg, self.road.road_width, owner)
@@ -235,6 +240,7 @@ class HighwayWorld:
         self.start_s = float(self.road.reference.wrap_s(
             cfg["start_s"] if cfg["start_s"] is not None else self.road.start_s))
         self.start_d = float(cfg["start_d"] if cfg["start_d"] is not None else self.road.start_d)
+        self.goal = RoadGoal(self.road, self.start_s, cfg["distance_target"], envs, owner)
         self.start_xy = self.road.reference.to_xy(self.start_s, self.start_d).astype(np.float64)
         # The original's car faces +x at its start (yaw exactly 0 in the first telemetry)
         # until a path turns it; our own maps, and a start set in the config, face the road.
@@ -265,6 +271,7 @@ class HighwayWorld:
         ``scenario``: the config's (the default), ``None`` (random traffic), or a scenario
         (a file path, a mapping or a :class:`~sdc_gym.scenarios.model.Scenario`).
         """
+        self.goal.reset_at(env, self.start_xy)
         if self.episodes.reset(self, env, rng, scenario):
             return
         self.rngs[env] = rng
@@ -359,14 +366,18 @@ class HighwayWorld:
         self.collided |= collision
         stopped = self.episodes.record(self, incidents, self.d)
         terminated = collision & self.config["terminate_on_collision"]
-        lapped = ~terminated & (metrics.laps >= self.config["laps"])
+        if self.goal.active:  # an open road: its goal, not laps
+            lapped = ~terminated & self.goal.record(xy, s, metrics.steps, self.rules.dt)
+        else:
+            lapped = ~terminated & (metrics.laps >= self.config["laps"])
         terminated = terminated | lapped | stopped
         truncated = ~terminated & (metrics.steps * self.rules.dt
                                    >= self.episodes.max_duration - 1e-9)
         for env in np.flatnonzero(terminated | truncated).tolist():
             self.done_reason[env] = ("collision" if collision[env] and not lapped[env]
                                      and self.config["terminate_on_collision"]
-                                     else "laps_completed" if lapped[env]
+                                     else (self.goal.reason(env) if self.goal.active
+                                           else "laps_completed") if lapped[env]
                                      else self.episodes.reason(env) or "max_duration")
         return StepResult(reward, terminated, truncated, incidents)
 
@@ -449,6 +460,8 @@ class HighwayWorld:
         verdict = self.episodes.is_success(self, env)  # a scenario's own conditions
         if verdict is not None:
             return verdict
+        if self.goal.active:
+            return bool(self.goal.reached[env])
         return bool(self.metrics.laps[env] >= self.config["laps"])
 
     def summary(self, env: int) -> dict[str, Any]:
@@ -457,6 +470,8 @@ class HighwayWorld:
         summary["is_success"] = self.is_success(env)
         summary["termination_reason"] = self.done_reason[env]
         summary["collided"] = bool(self.collided[env])
+        if self.goal.active:
+            summary["goal"] = self.goal.summary(env)
         summary["incident_log"] = [incident.as_dict()
                                    for incident in self.metrics.incidents[env]]
         scenario = self.episodes.summary(self, env)

@@ -23,6 +23,13 @@ beyond the next waypoint. :mod:`sdc_gym.geometry.coarse_frenet` is the planner
 template's cousin of this routine (closest waypoint to the point itself, next waypoint by
 the car's heading, s re-summed from the rounded x, y columns).
 
+On an open road (``closed=False``; the Udacity-Bosch Challenge's maps) nothing wraps:
+there is no chord from the last waypoint back to the first, so the previous waypoint is
+clamped to the first chord and the last one (``0 .. n-2``). A point past the last waypoint
+is measured along the last chord extended (s beyond the file's last s, growing); a point
+behind the first waypoint reads ``s = |projection|`` on the first chord, the original's
+own rule (its s is a sum that never subtracts), so s is never negative.
+
 The sign: within the road (|d| well under the fixed point's distance from any chord),
 "nearer to (1000, 2000) than the projection is" is the same as "left of the chord" on the
 original map (the fixed point lies left of all 181 chords; a test pins it). This module
@@ -53,6 +60,7 @@ class OriginalFrenet:
     """
 
     waypoints: FloatArray = field(repr=False)
+    closed: bool = True
 
     def __post_init__(self) -> None:
         rows = np.asarray(self.waypoints, dtype=np.float64)
@@ -70,7 +78,10 @@ class OriginalFrenet:
 
     @property
     def loop_length(self) -> float:
-        """The polyline's length: the last waypoint's s plus the closing chord."""
+        """The polyline's length: the last waypoint's s plus the closing chord (an open
+        road's: the last waypoint's s)."""
+        if not self.closed:
+            return float(self._chords[-1, 2])
         return float(self._chords[-1, 2] + self._chords[-1, 6])
 
     def closest_waypoint(self, xy: ArrayLike) -> NDArray[np.intp]:
@@ -92,7 +103,11 @@ class OriginalFrenet:
         # Beyond the closest waypoint along the road's direction there?
         offset = self.waypoints[closest, :2] - xy
         beyond = (offset * self._direction[closest]).sum(axis=1) < 0
-        prev_wp = np.where(beyond, closest, closest - 1) % len(self.waypoints)
+        prev_wp = np.where(beyond, closest, closest - 1)
+        if self.closed:
+            prev_wp %= len(self.waypoints)
+        else:  # no closing chord: the first chord before the start, the last past the end
+            prev_wp = np.clip(prev_wp, 0, len(self.waypoints) - 2)
         table = self._chords[prev_wp]
         rel = xy - table[:, :2]
         chord = table[:, 3:5]

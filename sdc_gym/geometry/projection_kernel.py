@@ -46,7 +46,8 @@ class LineGeometry(NamedTuple):
     last_segment: int
     total_param: float  # parameter length of the loop
     param_scale: float  # parameter per metre of arc length
-    length: float  # loop length, m
+    length: float  # loop length, m (an open line's: the period of s, far past its end)
+    closed: bool  # False: an open line, s from 0 (clamped there), no wrap
 
 
 @kernel
@@ -57,6 +58,8 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
     step_u, inverse, last = line.knot_step, line.inverse_step, line.last_segment
     total, scale = line.total_param, line.param_scale
     u0 = py_mod(s0, line.length) * scale
+    if not line.closed and s0 < 0.0:
+        u0 = 0.0  # an open line begins at s = 0
     u = u0
     for _ in range(NEWTON_ITERATIONS):
         i = min(int(u * inverse), last)
@@ -74,7 +77,9 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
             step = MAX_NEWTON_STEP_M
         if step < -MAX_NEWTON_STEP_M:
             step = -MAX_NEWTON_STEP_M
-        u = py_mod(u - step, total)
+        # A loop wraps; an open line clamps at its start (past its end runs the straight
+        # run-out, sdc_gym.geometry.open_line).
+        u = py_mod(u - step, total) if line.closed else max(u - step, 0.0)
         if -NEWTON_TOLERANCE_M < step < NEWTON_TOLERANCE_M:
             break
     i = min(int(u * inverse), last)
@@ -86,7 +91,10 @@ def project_point(line: LineGeometry, x: float, y: float, s0: float
     point_y = ((c[1] * t + c[3]) * t + c[5]) * t + c[7]
     d = ((x - point_x) * velocity_y - (y - point_y) * velocity_x) / math.hypot(velocity_x,
                                                                              velocity_y)
-    moved = (py_mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
+    if line.closed:
+        moved = (py_mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
+    else:
+        moved = (u - u0) / scale
     return u / scale, d, moved
 
 
@@ -100,8 +108,8 @@ def is_lost(d: float, moved: float) -> bool:
 @kernel
 def project_points(coef_xy: NDArray[np.float64], knot_step: float, inverse_step: float,
                    last_segment: int, total_param: float, param_scale: float, length: float,
-                   x: NDArray[np.float64], y: NDArray[np.float64], s0: NDArray[np.float64],
-                   s: NDArray[np.float64], d: NDArray[np.float64],
+                   closed: bool, x: NDArray[np.float64], y: NDArray[np.float64],
+                   s0: NDArray[np.float64], s: NDArray[np.float64], d: NDArray[np.float64],
                    moved: NDArray[np.float64]) -> int:
     """:func:`project_point` for flat arrays of points, into ``s``, ``d``, ``moved``;
     returns how many the local search lost (:func:`is_lost`). The line comes as the
@@ -109,7 +117,7 @@ def project_points(coef_xy: NDArray[np.float64], knot_step: float, inverse_step:
     and numbers are what numba's dispatcher types fastest when Python calls a kernel (a
     tuple argument costs tens of microseconds per call)."""
     line = LineGeometry(coef_xy, knot_step, inverse_step, last_segment, total_param,
-                        param_scale, length)
+                        param_scale, length, closed)
     lost = 0
     for k in range(x.size):
         s[k], d[k], moved[k] = project_point(line, x[k], y[k], s0[k])

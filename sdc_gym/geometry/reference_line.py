@@ -34,8 +34,9 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
+from sdc_gym.geometry.arc_length import partial_lengths, segment_lengths
 from sdc_gym.geometry.exact_math import atan2, complex_abs, fused_product_sum, power
-from sdc_gym.geometry.fixed_order import dot_rows
+from sdc_gym.geometry.open_line import build_open_line
 from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
 from sdc_gym.geometry.projection_kernel import MAX_NEWTON_STEP_M as _MAX_NEWTON_STEP_M
 from sdc_gym.geometry.projection_kernel import NEWTON_ITERATIONS as _NEWTON_ITERATIONS
@@ -44,25 +45,12 @@ from sdc_gym.geometry.projection_kernel import LineGeometry, project_points
 
 FloatArray = NDArray[np.float64]
 
-# Gauss-Legendre nodes/weights on [0, 1] for segment arc lengths.
-_GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(20)
-_GL_NODES = 0.5 * (_GL_NODES + 1.0)
-_GL_WEIGHTS = 0.5 * _GL_WEIGHTS
-
 # Batches up to this many points are projected in plain Python (see ReferenceLine._newton).
 _SCALAR_BATCH_LIMIT = 12
 
 
 class ReferenceLineError(ValueError):
     """The waypoints cannot make a closed reference line (too few, not finite, repeated)."""
-
-
-def _segment_lengths(spline: CubicSpline, knots: FloatArray) -> FloatArray:
-    """Exact arc length of each spline segment between consecutive knots."""
-    h = np.diff(knots)
-    u = knots[:-1, None] + h[:, None] * _GL_NODES[None, :]
-    speed = np.hypot(*np.moveaxis(spline(u, 1), -1, 0))
-    return h * dot_rows(speed, _GL_WEIGHTS)
 
 
 def _cross(a: NDArray[np.complex128], b: NDArray[np.complex128]) -> FloatArray:
@@ -83,21 +71,34 @@ class ReferenceLine:
         waypoints: (n, 2) points in driving order, the loop closing from the last back to
             the first (do not repeat the first point at the end).
         resample_step: spacing in metres of the arc-length resampling.
+        closed: ``False`` builds an *open* line from the first point to the last
+            (:mod:`sdc_gym.geometry.open_line`: s from the first point, no wrap within the
+            road, :attr:`end_s` its end, :attr:`length` then the period of s).
     """
 
-    def __init__(self, waypoints: ArrayLike, resample_step: float = 2.0) -> None:
+    def __init__(self, waypoints: ArrayLike, resample_step: float = 2.0, *,
+                 closed: bool = True) -> None:
         points = np.asarray(waypoints, dtype=np.float64)
         if points.ndim != 2 or points.shape[1] != 2:
             raise ReferenceLineError(
                 f"waypoints must be an (n, 2) array of x, y; got shape {points.shape}"
             )
-        if len(points) < 4:
-            raise ReferenceLineError(
-                f"a closed reference line needs at least 4 waypoints; got {len(points)}"
-            )
+        if len(points) < (4 if closed else 3):
+            kind = "a closed reference line needs at least 4" if closed else (
+                "an open reference line needs at least 3")
+            raise ReferenceLineError(f"{kind} waypoints; got {len(points)}")
         if not np.all(np.isfinite(points)):
             bad = int(np.flatnonzero(~np.all(np.isfinite(points), axis=1))[0])
             raise ReferenceLineError(f"waypoint {bad} is not finite: {points[bad].tolist()}")
+        if not closed:
+            steps = np.hypot(*np.diff(points, axis=0).T)
+            if np.any(steps < 1e-6):
+                bad = int(np.flatnonzero(steps < 1e-6)[0])
+                raise ReferenceLineError(f"waypoints {bad} and {bad + 1} coincide; "
+                                         "consecutive waypoints must be distinct")
+            build_open_line(self, points, resample_step, _NEWTON_ITERATIONS)
+            return
+        self.closed: bool = True
         if np.allclose(points[0], points[-1]):
             points = points[:-1]  # tolerate a repeated closing point
         closed = np.vstack([points, points[:1]])
@@ -113,7 +114,7 @@ class ReferenceLine:
 
         coarse_knots = np.concatenate([[0.0], np.cumsum(chord)])
         coarse = CubicSpline(coarse_knots, closed, bc_type="periodic")
-        seg = _segment_lengths(coarse, coarse_knots)
+        seg = segment_lengths(coarse, coarse_knots)
         cum = np.concatenate([[0.0], np.cumsum(seg)])
         coarse_length = float(cum[-1])
 
@@ -127,15 +128,15 @@ class ReferenceLine:
         for _ in range(_NEWTON_ITERATIONS + 2):
             lo = coarse_knots[seg_index]
             h = u - lo
-            nodes = lo[:, None] + h[:, None] * _GL_NODES[None, :]
-            partial = h * dot_rows(np.hypot(*np.moveaxis(coarse(nodes, 1), -1, 0)), _GL_WEIGHTS)
+            partial = partial_lengths(coarse, lo, h)
             speed = np.hypot(*coarse(u, 1).T)
             u = u - (cum[seg_index] + partial - targets) / speed
         resampled = coarse(u)
 
         knots = np.append(targets, coarse_length)
         spline = CubicSpline(knots, np.vstack([resampled, resampled[:1]]), bc_type="periodic")
-        self.length: float = float(_segment_lengths(spline, knots).sum())
+        self.length: float = float(segment_lengths(spline, knots).sum())
+        self.end_s: float = self.length  # a loop's s ends where it starts again
         # Knot spacing is exact arc length of the coarse curve; rescale the tiny residual.
         self._param_scale = coarse_length / self.length
         self._samples_s = targets / self._param_scale
@@ -159,7 +160,7 @@ class ReferenceLine:
         self._geometry = LineGeometry(self._coef_xy, float(self._knot_step),
                                       float(self._inverse_step), int(self._segments - 1),
                                       float(self._total_param), float(self._param_scale),
-                                      float(self.length))
+                                      float(self.length), True)
 
     # ------------------------------------------------------------------ evaluation
     def _param(self, s: ArrayLike) -> FloatArray:
@@ -297,7 +298,7 @@ class ReferenceLine:
             f = _dot(offset, velocity)
             fp = _dot(velocity, velocity) + _dot(offset, acceleration)
             step = np.maximum(np.minimum(f / fp, _MAX_NEWTON_STEP_M), -_MAX_NEWTON_STEP_M)
-            u = np.mod(u - step, total)
+            u = np.mod(u - step, total) if self.closed else np.maximum(u - step, 0.0)
             # Quadratic convergence: after a step under 1e-6 m the error is ~1e-12 m.
             if np.abs(step).max() < _NEWTON_TOLERANCE_M:
                 break
@@ -306,7 +307,8 @@ class ReferenceLine:
         # d is the offset's component along the right normal -i * tangent.
         d = _cross(p - self._point(c, t), velocity) / complex_abs(velocity)
         scale = self._param_scale
-        moved = (np.mod(u - u0 + 0.5 * total, total) - 0.5 * total) / scale
+        moved = ((np.mod(u - u0 + 0.5 * total, total) - 0.5 * total) if self.closed
+                 else u - u0) / scale
         return u / scale, d, moved
 
     def _newton_scalar(

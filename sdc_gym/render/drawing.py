@@ -16,13 +16,19 @@ CHUNK_SEGMENTS = 48
 polygon stays simple even when the whole loop is in view."""
 
 
-def circular_runs(mask: NDArray[np.bool_]) -> list[NDArray[np.intp]]:
+def circular_runs(mask: NDArray[np.bool_], closed: bool = True) -> list[NDArray[np.intp]]:
     """Index runs of consecutive True samples on a closed loop, each grown by one sample
-    at both ends (so lines reach past the view edge), split into bounded chunks."""
+    at both ends (so lines reach past the view edge), split into bounded chunks; on an
+    open road (``closed`` False) the runs stop at its ends instead of wrapping."""
     n = mask.size
     if not mask.any():
         return []
-    if mask.all():
+    if not closed:
+        hits = np.flatnonzero(mask)
+        breaks = np.flatnonzero(np.diff(hits) > 1) + 1
+        runs = [np.arange(max(run[0] - 1, 0), min(run[-1] + 2, n))
+                for run in np.split(hits, breaks)]
+    elif mask.all():
         runs = [np.arange(n + 1) % n]  # the whole loop, closed
     else:
         first_false = int(np.argmin(mask))

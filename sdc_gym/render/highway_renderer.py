@@ -138,8 +138,11 @@ class HighwayRenderer(TopDownRenderer):
     def _precompute_road(self) -> None:
         ref = self.road.reference
         road_width = self.road.road_width
-        count = max(math.ceil(ref.length / SAMPLE_STEP_M), 16)
-        s = np.linspace(0.0, ref.length, count, endpoint=False)
+        # A loop's samples go once around; an open road's from its start to its end.
+        self.road_closed = self.road.closed
+        count = max(math.ceil(ref.end_s / SAMPLE_STEP_M), 16)
+        s = np.linspace(0.0, ref.end_s, count + (0 if ref.closed else 1),
+                        endpoint=not ref.closed)
         self._center_xy = ref.to_xy(s, np.zeros_like(s))
         # Rows (each (count, 2)): shoulder edges, lane-surface edges (inset a little so
         # the edge lines cover them), the yellow centre line and the white right edge.
@@ -150,7 +153,7 @@ class HighwayRenderer(TopDownRenderer):
         self._edges_xy = np.stack([ref.to_xy(s, np.full_like(s, d)) for d in offsets])
         self._sample_margin_m = SAMPLE_STEP_M + road_width + SHOULDER_M
 
-        dash_s = np.arange(0.0, ref.length - DASH_PERIOD_M + DASH_LENGTH_M, DASH_PERIOD_M)
+        dash_s = np.arange(0.0, ref.end_s - DASH_PERIOD_M + DASH_LENGTH_M, DASH_PERIOD_M)
         starts, ends = [], []
         for lane in range(1, self.road.lane_count):
             d = np.full_like(dash_s, lane * self.road.lane_width)
@@ -161,7 +164,7 @@ class HighwayRenderer(TopDownRenderer):
 
     def _precompute_markers(self) -> None:
         ref = self.road.reference
-        marker_s = np.arange(0.0, ref.length - 0.5 * MARKER_SPACING_M, MARKER_SPACING_M)
+        marker_s = np.arange(0.0, ref.end_s - 0.5 * MARKER_SPACING_M, MARKER_SPACING_M)
         d0 = self.road.road_width + SHOULDER_M
         self._marker_in = ref.to_xy(marker_s, np.full_like(marker_s, d0))
         self._marker_out = ref.to_xy(marker_s, np.full_like(marker_s, d0 + 2.0))

@@ -77,6 +77,9 @@ class TopDownRenderer:
     :meth:`_precompute_minimap`), and implements :meth:`_draw`.
     """
 
+    road_closed: bool = True
+    """False for an open road: its ends are not joined (a subclass sets it)."""
+
     def __init__(self, *, width: int, height: int, pixels_per_meter: float, render_fps: int,
                  caption: str) -> None:
         if width <= 0 or height <= 0:
@@ -145,7 +148,7 @@ class TopDownRenderer:
         ``margin`` m is visible); ``rows_xy`` (rows, n, 2) are the lines drawn along them.
         """
         dist = np.hypot(*(samples_xy - np.asarray(car_xy)).T)
-        chunks = circular_runs(dist < self.view_radius_m + margin)
+        chunks = circular_runs(dist < self.view_radius_m + margin, self.road_closed)
         return [self.world_to_screen(rows_xy[:, chunk], car_xy, car_heading) for chunk in chunks]
 
     def _fill_bands(self, surface: Any, chunk_pts: list[NDArray[np.float64]], left: int,
@@ -284,7 +287,7 @@ class TopDownRenderer:
         self._mini_pos = (self.width - size - PANEL_MARGIN_PX, PANEL_MARGIN_PX)
         surface = pg.Surface((size, size), pg.SRCALPHA)
         surface.fill((*PANEL_COLOR, PANEL_ALPHA))
-        pg.draw.lines(surface, MINIMAP_ROAD_COLOR, True,
+        pg.draw.lines(surface, MINIMAP_ROAD_COLOR, self.road_closed,
                       self._minimap_points(loop_xy).tolist(), MINIMAP_ROAD_PX)
         self._decorate_minimap(surface)
         pg.draw.rect(surface, MINIMAP_BORDER_COLOR, surface.get_rect(), 1)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
-from sdc_gym.road.highway_map import HighwayMap, MapFormatError, load_highway_map
+from sdc_gym.road.highway_map import ROAD_KINDS, HighwayMap, MapFormatError, load_highway_map
 from sdc_gym.road.layout import Segment, sample_layout
 
 _DEFAULT_LAYOUT: tuple[Segment, ...] = (
@@ -45,13 +45,20 @@ def _builtin(name: str) -> HighwayMap:
 BUILTIN_HIGHWAYS: tuple[str, ...] = ("default", "oval")
 
 
-def get_highway_map(spec: str) -> HighwayMap:
-    """A built-in highway by name (see :data:`BUILTIN_HIGHWAYS`) or a map file by path."""
+def get_highway_map(spec: str, road: str = "auto") -> HighwayMap:
+    """A built-in highway by name (see :data:`BUILTIN_HIGHWAYS`) or a map file by path;
+    ``road`` as :func:`~sdc_gym.road.highway_map.load_highway_map` takes it (the built-ins
+    are loops)."""
     if not isinstance(spec, str) or not spec.strip():
         raise MapFormatError(
             f"map must be a built-in name {list(BUILTIN_HIGHWAYS)} or a file path, got {spec!r}"
         )
+    if road not in ROAD_KINDS:
+        raise MapFormatError(f"road must be one of {list(ROAD_KINDS)}, got {road!r}")
     if spec in BUILTIN_HIGHWAYS:
+        if road == "open":
+            raise MapFormatError(f"map {spec!r} is a built-in loop, not an open road "
+                                 "(road: open needs a map file whose ends do not meet)")
         return _builtin(spec)
     path = Path(spec).expanduser()
     if not path.exists():
@@ -59,9 +66,9 @@ def get_highway_map(spec: str) -> HighwayMap:
             f"map {spec!r} is neither a built-in ({', '.join(BUILTIN_HIGHWAYS)}) "
             "nor an existing file"
         )
-    return _load_cached(str(path.resolve()))
+    return _load_cached(str(path.resolve()), road)
 
 
 @functools.lru_cache(maxsize=8)
-def _load_cached(path: str) -> HighwayMap:
-    return load_highway_map(path)
+def _load_cached(path: str, road: str) -> HighwayMap:
+    return load_highway_map(path, road=road)

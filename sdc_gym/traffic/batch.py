@@ -131,6 +131,8 @@ class TrafficBatch:
         self.reference = road.reference
         self.geometry = TrafficGeometry(road, config, self.dt)
         self.loop = float(road.length)
+        # An open road's end: its cars spawn on [0, end] and leave past it (a loop: inf).
+        self.road_end = math.inf if road.closed else float(road.end_s)
         self.half_loop = 0.5 * self.loop
         self.loop_0d = np.array(self.loop)
         self.lanes = int(road.lane_count)
@@ -197,13 +199,14 @@ class TrafficBatch:
                 (decisions.C_CUT_IN_DURATION, cfg.rogue_cut_in_duration),
                 (decisions.C_CUT_IN_STEPS,
                  math.ceil(cfg.rogue_cut_in_duration / self.dt - 1e-9)),
-                (decisions.C_DECISION_DT, self.decision_dt)):
+                (decisions.C_DECISION_DT, self.decision_dt),
+                (decisions.C_ROAD_END, self.road_end)):
             constants[index] = value
         return constants
 
     def _placement_constants(self) -> FloatArray:
         cfg, idm = self.config, self.config.idm
-        constants = np.zeros(12)
+        constants = np.zeros(placement.PLACEMENT_CONSTANTS)
         for index, value in (
                 (placement.K_LOOP, self.loop), (placement.K_LANE_WIDTH, self.lane_width),
                 (placement.K_WANDER, cfg.lateral_wander), (placement.K_DT, self.dt),
@@ -212,7 +215,8 @@ class TrafficBatch:
                 (placement.K_EGO_HALF_LENGTH, self.ego_half_length),
                 (placement.K_EGO_A_MAX, idm.a_max), (placement.K_EGO_TSAB, self.ego_tsab),
                 (placement.K_IDM_T, idm.T), (placement.K_IDM_S0, idm.s0),
-                (placement.K_IDM_FLOOR, float(idm.floor_desired_gap))):
+                (placement.K_IDM_FLOOR, float(idm.floor_desired_gap)),
+                (placement.K_ROAD_END, self.road_end)):
             constants[index] = value
         return constants
 

@@ -81,8 +81,8 @@ IntArray = NDArray[np.int64]
  C_EGO_TSAB, C_IDM_T, C_IDM_S0, C_IDM_MAX_BRAKING, C_IDM_FLOOR, C_CLEARANCE, C_MIN_GAIN,
  C_MAX_IMPOSED, C_MIN_SPEED, C_LC_DURATION, C_LC_STEPS, C_SUSTAIN, C_ROGUE_P,
  C_ROGUE_DECEL, C_BRAKE_STEPS, C_CUT_IN_WINDOW, C_CUT_IN_GAP, C_CUT_IN_DURATION,
- C_CUT_IN_STEPS, C_DECISION_DT) = range(27)
-CONSTANTS = 27
+ C_CUT_IN_STEPS, C_DECISION_DT, C_ROAD_END) = range(28)
+CONSTANTS = 28
 _NOT_ZERO = 1e-2  # highway-env's utils.not_zero (sdc_gym.traffic.idm)
 
 
@@ -94,7 +94,8 @@ def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarr
     """Step 1 for the envs with ``rows`` (at their window frame ``end``): the ego's
     latest state before the decision, finished lane changes; each object's IDM speed
     ratio ``max(v, 0) / v0`` (the ego "wants" its current speed); and per env the cars to
-    recycle (``candidates``, -1 padded): those beyond the recycling range whose retry wait
+    recycle (``candidates``, -1 padded): those beyond the recycling range (or, on an open
+    road, past its end ``C_ROAD_END``: they leave; a loop's is inf) whose retry wait
     is over, the farthest first (the first of equals), at most ``respawn_per_decision``,
     none while the env's respawns pause. Returns how many envs have any."""
     loop = constants[C_LOOP]
@@ -123,14 +124,20 @@ def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarr
         for c in range(cars):
             ratio[e, c] = max(cf[SPEED, e, c], 0.0) / cf[DESIRED, e, c]
         ratio[e, cars] = max(ef[EGO_SPEED, e], 0.0) / ego_v0
+        road_end = constants[C_ROAD_END]
         if _relative(cf, ef, e, loop, half, rel) <= constants[C_RANGE] or (
                 now < ei[RESPAWN_BLOCKED_UNTIL, e]):
+            if not _any_past(cf, e, road_end):
+                continue
+        if now < ei[RESPAWN_BLOCKED_UNTIL, e]:
             continue
         taken[:] = False
         for slot in range(candidates.shape[1]):
             pick, farthest = -1, 0.0
             for c in range(cars):
                 far = abs(rel[c])
+                if cf[S, e, c] > road_end:  # past an open road's end: it leaves first
+                    far = math.inf
                 if (not taken[c] and far > constants[C_RANGE]
                         and ci[RESPAWN_WAIT, e, c] <= now and (pick < 0 or far > farthest)):
                     pick, farthest = c, far
@@ -140,6 +147,15 @@ def begin_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarr
             candidates[e, slot] = pick
         count += candidates[e, 0] >= 0
     return count
+
+
+@njit(cache=True, inline="always")
+def _any_past(cf: np.ndarray, e: int, road_end: float) -> bool:
+    """Whether a car of env ``e`` is past ``road_end`` (an open road's end; inf: none)."""
+    for c in range(cf.shape[2]):
+        if cf[S, e, c] > road_end:
+            return True
+    return False
 
 
 @njit(cache=True, inline="always")

@@ -78,7 +78,10 @@ RESPAWN_PAUSE_STEPS = 50  # and after any such failure nobody tries for this lon
 
 # The placement constants, in this order (TrafficBatch.placement_constants).
 (K_LOOP, K_LANE_WIDTH, K_WANDER, K_DT, K_MIN_GAP, K_EGO_HALF_WIDTH, K_EGO_HALF_LENGTH,
- K_EGO_A_MAX, K_EGO_TSAB, K_IDM_T, K_IDM_S0, K_IDM_FLOOR) = range(12)
+ K_EGO_A_MAX, K_EGO_TSAB, K_IDM_T, K_IDM_S0, K_IDM_FLOOR, K_ROAD_END) = range(13)
+PLACEMENT_CONSTANTS = 13
+"""``K_ROAD_END``: an open road's end s (a spot must leave the car on ``[0, end]``); a
+loop's is inf."""
 _TYPE_LENGTH = TYPE_LENGTHS.copy()
 _TYPE_WIDTH = TYPE_WIDTHS.copy()
 _TYPE_ACCEL = TYPE_COMFORT_ACCEL.copy()
@@ -277,8 +280,13 @@ def find_spot(cf: np.ndarray, ci: np.ndarray, ef: np.ndarray, constants: np.ndar
     a_o[j], tsab_o[j] = constants[K_EGO_A_MAX], constants[K_EGO_TSAB]
     for j in range(count + 1):
         scale_o[j] = 1.0 + interp(s_o[j], kappa_grid, kappa_table) * d_o[j]
+    road_end = constants[K_ROAD_END]
     for k in range(offsets.shape[0]):
         s_c = py_mod(ego_s + offsets[k], loop)
+        # An open road: only spots on it (behind its start, ego_s + offset < 0 reads as
+        # near the period, past the end too).
+        if road_end < math.inf and not 0.5 * length <= s_c <= road_end - 0.5 * length:
+            continue
         lane = lanes[k]
         scale_c = 1.0 + interp(s_c, kappa_grid, kappa_table) * ((lane + 0.5) * lane_width)
         # The nearest object ahead and behind in the lane (the first of equals; the first
@@ -347,9 +355,13 @@ def _free_spot(batch: TrafficBatch, st: TrafficState, r: int, i: int, rel: Float
     placed = (lanes == st.origin[r, :i, None]) | (lanes == st.target_lane[r, :i, None])
     occupied = np.vstack([placed, batch.ego_lanes(st.ego_d[r:r + 1])])
     pieces: list[tuple[int, float, float]] = []
+    lo_road, hi_road = -math.inf, math.inf
+    if batch.road_end < math.inf:  # an open road: only the road between its ends
+        lo_road = -float(st.ego_s[r]) + half
+        hi_road = batch.road_end - float(st.ego_s[r]) - half
     for lane in range(batch.lanes):
         mask = occupied[:, lane]
-        lo, hi = -spread + half, spread - half
+        lo, hi = max(-spread + half, lo_road), min(spread - half, hi_road)
         starts, ends = others[mask] - reach[mask], others[mask] + reach[mask]
         order = np.argsort(starts)
         starts, ends = starts[order], np.maximum.accumulate(ends[order])

@@ -84,6 +84,8 @@ HIGHWAY_RULES: Final[dict[str, Rule]] = {
     "path_points": Number(2, MAX_PATH_POINTS, integer=True, unit="points",
                           why="every step carries (path_points, 2) arrays"),
     "laps": Number(1, MAX_LAPS, integer=True),
+    "distance_target": Number(0.0, 100_000.0, low_open=True, optional=True,
+                              unit="m past the start on an open road"),
     "max_duration": Number(0.0, MAX_DURATION_S, low_open=True, unit="s"),
     "start_s": Number(optional=True, unit="m along the road"),
     "start_d": Number(optional=True, unit="m right of the centre line"),

@@ -52,6 +52,22 @@ def _polyline_length(xy: NDArray[np.float64]) -> tuple[float, float, float]:
     return float(steps.sum()) + closing, closing, float(steps.max())
 
 
+def ends_meet(xy: NDArray[np.float64]) -> bool:
+    """The geometric rule that tells a loop from an open road: the ends of the points meet
+    when the gap from the last point to the first is at most :data:`MAX_CLOSING_FRACTION`
+    of the closed polyline's length, or at most :data:`MAX_CLOSING_STEPS` times its longest
+    other step *and* at most half the open polyline's length (a sparse loop, a square of 4
+    points, closes with one ordinary step; a short straight of a few long steps does not
+    come back). The original loops: 0.45 % and 0.19 %; the Bosch Challenge's open roads:
+    their ends lie 4.8 km apart, 49 % of the closed polyline and 75 x its longest step."""
+    if len(xy) < 2:
+        return True
+    length, closing, longest = _polyline_length(xy)
+    open_length = length - closing
+    return bool(closing <= MAX_CLOSING_FRACTION * length
+                or (closing <= MAX_CLOSING_STEPS * longest and closing <= 0.5 * open_length))
+
+
 def check_loop_points(xy: NDArray[np.float64], where: str, error: type[Exception], *,
                       min_length: float, max_length: float = MAX_LOOP_LENGTH_M) -> None:
     """The checks on the raw points (see the module docstring); fewer than 4 points are
@@ -71,12 +87,14 @@ def check_loop_points(xy: NDArray[np.float64], where: str, error: type[Exception
     if length < min_length:
         raise error(f"{where}: the loop is {length:.6g} m long; it must be in "
                     f"[{min_length:g}, {max_length:g}] m")
-    if closing > MAX_CLOSING_FRACTION * length and closing > MAX_CLOSING_STEPS * longest:
+    if not ends_meet(xy):
         raise error(f"{where}: not a closed loop: the last point is {closing:.1f} m from the "
                     f"first, {100 * closing / length:.0f} % of the loop's {length:.0f} m and "
                     f"{closing / longest:.0f} x its longest step (at most "
-                    f"{100 * MAX_CLOSING_FRACTION:g} % or {MAX_CLOSING_STEPS:g} x): a file "
-                    "runs once around a loop and ends near its start")
+                    f"{100 * MAX_CLOSING_FRACTION:g} %, or {MAX_CLOSING_STEPS:g} x and half "
+                    "the open length): a file "
+                    "runs once around a loop and ends near its start (an open road's ends "
+                    "do not meet: say road: open)")
     width = _rms_distance_from_best_line(xy)
     if width < MIN_WIDTH_RATIO * length:
         raise error(f"{where}: the points are (nearly) collinear: {width:.3g} m RMS from one "
@@ -96,17 +114,21 @@ def _rms_distance_from_best_line(xy: NDArray[np.float64]) -> float:
     return math.sqrt(max(smallest, 0.0) / len(xy))
 
 
-def _crossing(points: NDArray[np.float64]) -> tuple[int, int] | None:
-    """Two non-adjacent segments of the closed polyline ``points`` that cross, if any."""
+def _crossing(points: NDArray[np.float64], closed: bool = True) -> tuple[int, int] | None:
+    """Two non-adjacent segments of the polyline ``points`` (closed: with the segment from
+    the last point back to the first) that cross, if any."""
     count = len(points)
     ends = np.roll(points, -1, axis=0)
+    if not closed:  # no closing segment: the pairs with it are dropped below
+        ends[-1] = points[-1]
     middle = 0.5 * (points + ends)
     reach = float(np.hypot(*(ends - points).T).max())
     pairs = cKDTree(middle).query_pairs(reach, output_type="ndarray")
     if not len(pairs):
         return None
     i, j = pairs[:, 0], pairs[:, 1]
-    apart = np.minimum(np.abs(i - j), count - np.abs(i - j)) > 1
+    apart = (np.minimum(np.abs(i - j), count - np.abs(i - j)) > 1 if closed
+             else (np.abs(i - j) > 1) & (i < count - 1) & (j < count - 1))
     i, j = i[apart], j[apart]
     a, b, c, d = points[i], ends[i], points[j], ends[j]
 
@@ -124,9 +146,11 @@ def _crossing(points: NDArray[np.float64]) -> tuple[int, int] | None:
 
 def check_reference_line(reference: ReferenceLine, where: str, error: type[Exception], *,
                          min_radius: float) -> None:
-    """The checks on the smooth line (see the module docstring)."""
-    count = max(int(reference.length / CURVATURE_SAMPLE_M), 16)
-    s = np.linspace(0.0, reference.length, count, endpoint=False)
+    """The checks on the smooth line (see the module docstring); an open line's from its
+    start to its end (:attr:`~ReferenceLine.end_s`)."""
+    closed = reference.closed
+    count = max(int(reference.end_s / CURVATURE_SAMPLE_M), 16)
+    s = np.linspace(0.0, reference.end_s, count + (0 if closed else 1), endpoint=not closed)
     curvature = np.abs(reference.curvature(s))
     sharpest = int(np.argmax(curvature))
     if curvature[sharpest] * min_radius > 1.0:
@@ -134,10 +158,35 @@ def check_reference_line(reference: ReferenceLine, where: str, error: type[Excep
         raise error(f"{where}: the road bends with a radius of {1.0 / curvature[sharpest]:.3g} m"
                     f" at s = {s[sharpest]:.1f} m (x {x:.1f}, y {y:.1f}); the smallest radius "
                     f"allowed is {min_radius:g} m")
-    crossing = _crossing(reference.position(s))
+    crossing = _crossing(reference.position(s), closed)
     if crossing is not None:
         first, second = (float(s[index]) for index in crossing)
         x, y = reference.position(first)
+        shape = "a loop must be simple, not a figure eight" if closed else (
+            "an open road must not run over itself")
         raise error(f"{where}: the road crosses itself (at s = {first:.1f} m and s = "
-                    f"{second:.1f} m, near x {x:.1f}, y {y:.1f}): a loop must be simple, "
-                    "not a figure eight")
+                    f"{second:.1f} m, near x {x:.1f}, y {y:.1f}): {shape}")
+
+
+def check_open_points(xy: NDArray[np.float64], where: str, error: type[Exception], *,
+                      min_length: float, max_length: float = MAX_LOOP_LENGTH_M) -> None:
+    """The checks on an open road's raw points: at least 3 of them, coordinates inside
+    the observation bounds, a length (first point to last along the polyline) in
+    ``[min_length, max_length]``, and ends that do not meet (that is a loop)."""
+    if len(xy) < 3:
+        raise error(f"{where}: an open road needs at least 3 waypoints, got {len(xy)}")
+    extent = float(np.abs(xy).max())
+    if extent > MAX_COORDINATE_M:
+        raise error(f"{where}: a coordinate of {extent:.4g} m; map points must lie within "
+                    f"+-{MAX_COORDINATE_M:g} m (the observations' bounds)")
+    length = float(np.hypot(*np.diff(xy, axis=0).T).sum())
+    if not min_length <= length <= max_length:
+        raise error(f"{where}: the open road is {length:.6g} m long; it must be in "
+                    f"[{min_length:g}, {max_length:g}] m")
+    if ends_meet(xy):
+        _, closing, _ = _polyline_length(xy)
+        raise error(f"{where}: a loop given as an open road: its last point is {closing:.1f} m "
+                    f"from its first, so its ends meet (the rule: a gap over "
+                    f"{100 * MAX_CLOSING_FRACTION:g} % of the closed polyline and over "
+                    f"{MAX_CLOSING_STEPS:g} x its longest step is open); say road: loop "
+                    "or auto")

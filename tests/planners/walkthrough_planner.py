@@ -91,9 +91,9 @@ class Walkthrough:
         ptsy: list[float] = []
         ref_x, ref_y, ref_yaw = car_x, car_y, math.radians(car_yaw)
         if prev_size < 2:
-            # car_yaw in degrees handed to cos and sin, as in the walkthrough.
-            ptsx += [car_x - math.cos(car_yaw), car_x]
-            ptsy += [car_y - math.sin(car_yaw), car_y]
+            back_x, back_y = self.start_anchor(car_x, car_y, car_yaw)
+            ptsx += [back_x, car_x]
+            ptsy += [back_y, car_y]
         else:
             ref_x, ref_y = previous_x[-1], previous_y[-1]
             ref_x_prev, ref_y_prev = previous_x[-2], previous_y[-2]
@@ -125,6 +125,17 @@ class Walkthrough:
             next_y.append(x_point * sin_b + y_point * cos_b + ref_y)
         return next_x, next_y
 
+    @staticmethod
+    def start_anchor(car_x: float, car_y: float, car_yaw: float) -> tuple[float, float]:
+        """The anchor behind a car without a previous path: ``car_yaw`` in degrees handed
+        to cos and sin, as in the walkthrough."""
+        return car_x - math.cos(car_yaw), car_y - math.sin(car_yaw)
+
+    @staticmethod
+    def gap(car_s: float, check_car_s: float, max_s: float) -> float:
+        """How far ``check_car_s`` is ahead of ``car_s``: across the loop's seam."""
+        return s_ahead(car_s, check_car_s, max_s)
+
     def _behave(self, car_s: float, prev_size: int, sensor_fusion: list[list[float]]) -> None:
         """The "too close" logic: lane and reference velocity for this message."""
         max_s = self.road.max_s
@@ -134,7 +145,7 @@ class Walkthrough:
             if lane < 0:
                 continue
             check_car_s = s + prev_size * DT * math.hypot(vx, vy)
-            ahead_in[lane].append(s_ahead(car_s, check_car_s, max_s))
+            ahead_in[lane].append(self.gap(car_s, check_car_s, max_s))
         too_close = any(0.0 < gap < TOO_CLOSE_M for gap in ahead_in[self.lane])
         if too_close:
             for lane in (self.lane - 1, self.lane + 1):

@@ -1,7 +1,9 @@
 """The packaged scenario files: one per seed scenario A to J of the FSM planner
 (``spec/fsm_planner.md``; the seed's diagram of lane-changing scenarios) and stress cases.
 ``library_path("a_early_lane_change")`` is a file's path, :func:`library_scenarios` all of
-them in name order; ``docs/scenarios.md`` lists them with the FSM styles' outcomes."""
+them in name order; ``docs/scenarios.md`` lists them with the FSM styles' outcomes.
+Scenarios made for one open road (the Bosch Challenge's final placement) are in
+``open_roads/``, beside them: they need their map and are not among these."""
 
 from __future__ import annotations
 
