@@ -96,7 +96,7 @@ from evaluation.tables import SEED_RECORD_MILES, endurance_table
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.ray import LOCAL
 from sdc_gym.units import METERS_PER_MILE
-from sdc_gym.validation.text_files import read_yaml
+from sdc_gym.validation.yaml_files import read_yaml
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
 COMMITTED_POLICY = "dqn:agents/highway/policies/dqn_highway.zip"

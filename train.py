@@ -62,7 +62,7 @@ from sdc_gym.validation.run_config import (
     check_hyperparams,
     check_run_config,
 )
-from sdc_gym.validation.text_files import parse_yaml
+from sdc_gym.validation.yaml_files import parse_yaml
 from training.driving_metrics import driving_metrics
 from training.yaml_files import read_yaml
 

@@ -41,7 +41,8 @@ from sdc_gym.road.highway_map import MapFormatError
 from sdc_gym.road.stop_line_kernel import next_stop_line
 from sdc_gym.units import KMH_TO_MPS
 from sdc_gym.validation.road_geometry import check_loop_points, check_reference_line
-from sdc_gym.validation.text_files import read_text, read_yaml
+from sdc_gym.validation.text_files import read_text
+from sdc_gym.validation.yaml_files import read_yaml
 
 # --- Lights (the original simulator; spec: poles about 24 m past their stop lines) ---------
 LIGHT_POLE_OFFSET_M = 24.0

@@ -2,7 +2,7 @@
 :class:`~sdc_gym.scenarios.model.Scenario`.
 
 Every error names the file and line (from YAML's node tree,
-:func:`~sdc_gym.validation.text_files.parse_yaml_lines`), the key path, what the value
+:func:`~sdc_gym.validation.yaml_files.parse_yaml_lines`), the key path, what the value
 must be and what it is::
 
     scenarios/stalled.yaml:14: scenario key 'cars[1].speed' must be a finite number in
@@ -228,7 +228,7 @@ def check_scenario(data: Any, source: str = "<mapping>",
 def load_scenario(scenario: str | os.PathLike[str] | Mapping[str, Any] | Scenario
                   ) -> Scenario:
     """A scenario from a file path, a mapping or an already checked :class:`Scenario`."""
-    from sdc_gym.validation.text_files import read_yaml_lines
+    from sdc_gym.validation.yaml_files import read_yaml_lines
 
     if isinstance(scenario, Scenario):
         return scenario
