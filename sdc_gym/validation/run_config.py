@@ -20,7 +20,7 @@ import typing
 from collections.abc import Mapping
 from typing import Any, Final
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.validation.rules import Choice, Number, Rule, check_finite, check_value, is_real
 
 ALGORITHMS: Final = ("ppo", "dqn", "sac", "a2c")
@@ -67,14 +67,14 @@ def check_run_config(config: Mapping[str, Any], owner: str, registered: Any) -> 
     env_id = config.get("env")
     if not isinstance(env_id, str) or not registered(env_id):
         raise ConfigError(f"{owner}: config key 'env' must be a registered env id (e.g. "
-                          f"sdc_gym/HighwayLoopBehavior-v0), got {env_id!r}")
+                          f"sdc_gym/HighwayLoopBehavior-v0), got {excerpt(env_id)}")
     if not isinstance(config.get("config"), Mapping):
         raise ConfigError(f"{owner}: config key 'config' must be a mapping of {env_id} "
-                          f"config keys, got {config.get('config')!r}")
+                          f"config keys, got {excerpt(config.get('config'))}")
     evaluation = config.get("eval")
     if not isinstance(evaluation, Mapping) or set(evaluation) - set(EVAL_DEFAULTS):
         raise ConfigError(f"{owner}: config key 'eval' must be a mapping with keys of "
-                          f"{sorted(EVAL_DEFAULTS)}, got {evaluation!r}")
+                          f"{sorted(EVAL_DEFAULTS)}, got {excerpt(evaluation)}")
     for key, rule in RUN_RULES.items():
         node: Any = config
         for part in key.split("."):
@@ -146,7 +146,8 @@ def check_hyperparams(algorithm: type, hyperparams: Mapping[str, Any], owner: st
         hint = _hint(algorithm, key)
         if not matches(value, hint):
             raise ConfigError(f"{owner}: hyperparameter {key!r} of {algorithm.__name__} must "
-                              f"be {_describe(hint)}, got {value!r} ({type(value).__name__})")
+                              f"be {_describe(hint)}, got {excerpt(value)} "
+                              f"({type(value).__name__})")
         if key in HYPERPARAM_RULES and is_real(value):
             check_value(HYPERPARAM_RULES[key], value, owner, key)
     check_finite(dict(hyperparams), owner)

@@ -22,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.scenarios.model import (
     ACTIONS,
@@ -91,7 +91,7 @@ class _Checker:
 
     def fail(self, path: str, expectation: str, value: Any) -> ConfigError:
         return ConfigError(f"{self.where(path)}: scenario key {path!r} must be "
-                           f"{expectation}, got {value!r}")
+                           f"{expectation}, got {excerpt(value)}")
 
     def mapping(self, value: Any, path: str, allowed: Sequence[str],
                 required: Sequence[str] = ()) -> Mapping[str, Any]:
@@ -238,7 +238,7 @@ def load_scenario(scenario: str | os.PathLike[str] | Mapping[str, Any] | Scenari
         data, lines = read_yaml_lines(scenario, "scenario file", ConfigError)
         return check_scenario(data, str(scenario), lines)
     raise ConfigError(f"a scenario must be a file path, a mapping or a Scenario, got "
-                      f"{type(scenario).__name__} ({scenario!r})")
+                      f"{type(scenario).__name__} ({excerpt(scenario)})")
 
 
 def _ego(check: _Checker, value: Any) -> EgoStart:
