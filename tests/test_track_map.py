@@ -249,7 +249,7 @@ LIGHTS_OK = ("camera_info:\n  image_width: 800\n  image_height: 600\n"
         ("stop_line_positions: []\n", "camera_info must be a mapping"),
         ("camera_info:\n  image_width: 800\nstop_line_positions: []\n",
          "missing key 'camera_info.image_height'"),
-        (LIGHTS_OK.replace("600", "'600'"), "camera_info.image_height must be a positive integer"),
+        (LIGHTS_OK.replace("600", "'600'"), "camera_info.image_height must be an integer in [1, 4096] (pixels)"),
         (LIGHTS_OK + "  - [1.0, 2.0, 3.0]\n",
          "stop_line_positions[1] must be a pair [x, y] of finite numbers, got [1.0, 2.0, 3.0]"),
         (LIGHTS_OK.replace("[1.0, 2.0]", "[1.0, abc]"), "stop_line_positions[0] must be a pair"),

@@ -451,7 +451,8 @@ def _refuse_unknown_keys(path: Path, prefix: str, data: dict[Any, Any],
         if key not in keys:
             close = difflib.get_close_matches(str(key), keys, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise TrackFormatError(f"{path}: unknown light config key {prefix}{key}{hint}; "
+            raise TrackFormatError(f"{path}: unknown light config key "
+                                   f"{excerpt(prefix + str(key))}{hint}; "
                                    f"valid: {', '.join(prefix + k for k in keys)}")
 
 
@@ -479,8 +480,9 @@ def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
     if not isinstance(raw_stops, list):
         raise fail("stop_line_positions", "a list of [x, y] pairs", raw_stops)
     if len(raw_stops) > MAX_STOP_LINES:
-        raise fail("stop_line_positions", f"at most {MAX_STOP_LINES:,} stop lines (the "
-                   f"original: 8)", f"{len(raw_stops):,} of them")
+        raise TrackFormatError(f"{path}: stop_line_positions must hold at most "
+                               f"{MAX_STOP_LINES:,} stop lines (the original: 8), got "
+                               f"{len(raw_stops):,}")
     for index, pair in enumerate(raw_stops):
         if (not isinstance(pair, list) or len(pair) != 2 or not all(map(_number, pair))
                 or not all(math.isfinite(value) for value in pair)):
