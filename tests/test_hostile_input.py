@@ -303,3 +303,46 @@ def test_the_validation_scenarios_module_imports_first():
 
 def test_yaml_errors_are_yaml_errors():
     assert issubclass(YamlLimitError, yaml.YAMLError)
+
+
+# ------------------------------------------------------------------------ actions
+@pytest.mark.parametrize("action, shape", [
+    (np.zeros((0, 3)), "(0, 3)"), (np.zeros((5, 0)), "(5, 0)"), ([], "(0,)")])
+def test_only_a_0_by_2_array_is_the_empty_path(action, shape):
+    env = gym.make(HIGHWAY, config={"map": "oval", "max_duration": 5.0})
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as raised:
+        env.step(action)
+    assert str(raised.value) == f"path must have shape (m, 2) with m <= 50, got {shape}"
+    env.step(np.zeros((0, 2)))  # the empty path: the car stops dead
+
+
+@pytest.mark.parametrize("action", [np.array([1], dtype=object), np.array(1, dtype=object)])
+def test_the_highway_behavior_env_refuses_an_object_array(action):
+    env = gym.make("sdc_gym/HighwayLoopBehavior-v0",
+                   config={"highway": {"map": "oval", "max_duration": 5.0}})
+    env.reset(seed=0)
+    with pytest.raises(ValueError) as raised:
+        env.step(action)
+    assert str(raised.value).startswith("a Discrete(9) action is an int in 0..8 = "
+                                        "['left/cruise', ")
+    assert str(raised.value).endswith("(a Python or NumPy int, or an int array of shape () "
+                                      f"or (1,)); got {action!r}")
+    env.step(np.array([1]))  # an int array of shape (1,), as vector envs hand out: valid
+
+
+# ------------------------------------------------------------------------ road files
+@pytest.mark.parametrize("count, phase", [(50, 0.0), (50, np.pi), (180, np.pi), (401, 0.0)])
+def test_a_figure_eight_crossing_at_its_first_waypoint_is_refused(tmp_path, count, phase):
+    """Each of these was accepted and driven: the crossing fell exactly on a sample, where
+    a side of +-1e-10 had a random sign (the same eight turned by 0.3 rad was refused)."""
+    from sdc_gym.road.highway_map import MapFormatError, load_highway_map
+    from tests.test_file_validation import highway_rows
+
+    t = np.linspace(0.0, 2 * np.pi, count, endpoint=False) + phase
+    eight = np.column_stack([1000 * np.sin(t), 500 * np.sin(2 * t)]) + 2000.0
+    path = tmp_path / "eight.csv"
+    path.write_text(highway_rows(eight))
+    with pytest.raises(MapFormatError, match=r"the road crosses itself \(at s = .* m, near "
+                       r"x 2000\.\d, y 2000\.\d\): a loop must be simple, not a figure eight"):
+        load_highway_map(path)

@@ -296,14 +296,14 @@ class HighwayWorld:
         of the last point dropped), or a clear ``ValueError``."""
         points = real_array(action, None, "path", f"(x, y) map points, shape (m, 2) with "
                             f"m <= path_points = {self.path_points}")
-        if points.size == 0:
-            return np.zeros((0, 2))
-        if points.ndim != 2 or points.shape[1] != 2:
+        if points.ndim != 2 or points.shape[1] != 2:  # the empty path too: shape (0, 2)
             raise ValueError(f"path must have shape (m, 2) with m <= {self.path_points}, "
                              f"got {points.shape}")
         if len(points) > self.path_points:
             raise ValueError(f"path has {len(points)} points; at most path_points = "
                              f"{self.path_points} (raise the 'path_points' config key)")
+        if len(points) == 0:
+            return np.zeros((0, 2))
         count = len(points)
         lengths = np.array([count])
         if not points.flags.c_contiguous:
