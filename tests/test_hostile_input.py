@@ -346,3 +346,98 @@ def test_a_figure_eight_crossing_at_its_first_waypoint_is_refused(tmp_path, coun
     with pytest.raises(MapFormatError, match=r"the road crosses itself \(at s = .* m, near "
                        r"x 2000\.\d, y 2000\.\d\): a loop must be simple, not a figure eight"):
         load_highway_map(path)
+
+
+# ------------------------------------------------------------------------ scenarios
+SCENARIOS = {
+    "gap 0 in the ego's lane": (
+        "ego: {lane: 1, speed: 20}\ncars:\n  - {lane: 1, gap: 0, speed: 20}\n",
+        ":3: scenario car cars[0] ('0', a car in lane 1 at s 124.8 m) overlaps the ego "
+        "(s 124.8 m): their centres are 0.0 m apart, less than the sum of their half "
+        "lengths, 4.7 m"),
+    "gap 2 m in the ego's lane": (
+        "ego: {lane: 1, speed: 20}\ncars:\n  - {lane: 1, gap: 2, speed: 20}\n",
+        ":3: scenario car cars[0] ('0', a car in lane 1 at s 126.8 m) overlaps the ego "
+        "(s 124.8 m): their centres are 2.0 m apart, less than the sum of their half "
+        "lengths, 4.7 m"),
+    "two cars on the same spot": (
+        "ego: {lane: 1, speed: 20}\ncars:\n  - {name: a, lane: 0, gap: 30, speed: 20}\n"
+        "  - {name: b, lane: 0, gap: 30, speed: 20}\n",
+        ":4: scenario car cars[1] ('b', a car in lane 0 at s 154.8 m) overlaps cars[0] ('a') "
+        "(s 154.8 m): their centres are 0.0 m apart, less than the sum of their half "
+        "lengths, 4.7 m"),
+    "ego d 100 on a 12 m road": (
+        "ego: {d: 100, speed: 20}\n",
+        ":1: scenario key 'ego.d' must be on the road, in [0, 12] m right of the centre "
+        "line, got 100"),
+    "lane_change to lane 7": (
+        "ego: {lane: 1, speed: 20}\ncars:\n  - {name: a, lane: 0, gap: 30, speed: 20}\n"
+        "actions:\n  - {car: a, when: {time: 1}, do: lane_change, lane: 7}\n",
+        ":5: scenario key 'actions[0].lane' must be a lane of the map, 0 to 2, got 7"),
+    "reach_lane 5 on three lanes": (
+        "ego: {lane: 1, speed: 20}\nsuccess:\n  reach_lane: {lane: 5, within: 10}\n",
+        ":3: scenario key 'success.reach_lane' must be a lane of the map, 0 to 2, got 5"),
+}
+
+
+@pytest.mark.parametrize("name", list(SCENARIOS))
+def test_each_bad_scenario_placement_names_the_file_and_line(name, tmp_path):
+    text, message = SCENARIOS[name]
+    path = tmp_path / "case.yaml"
+    path.write_text(text)
+    env = gym.make(HIGHWAY, config={"max_duration": 5.0})
+    with pytest.raises(ConfigError) as raised:
+        env.reset(seed=0, options={"scenario": str(path)})
+    assert str(raised.value) == f"{path}{message}"
+
+
+def test_cars_side_by_side_and_close_behind_are_valid(tmp_path):
+    path = tmp_path / "ok.yaml"
+    path.write_text("ego: {lane: 1, speed: 20}\ncars:\n  - {name: a, lane: 1, gap: 30, "
+                    "speed: 20}\n  - {name: b, lane: 0, gap: 30, speed: 20}\n"
+                    "  - {name: c, lane: 1, gap: 36, speed: 20}\n")
+    env = gym.make(HIGHWAY, config={"max_duration": 5.0})
+    env.reset(seed=0, options={"scenario": str(path)})
+    assert env.unwrapped.world.traffic.state.s[0, :3].tolist() == pytest.approx(
+        [154.83, 154.83, 160.83], abs=0.01)
+
+
+# ------------------------------------------------------------------------ incident reports
+@pytest.mark.parametrize("report, message", [
+    ({"replay": {}}, "the incident report lacks ['kind', 'time'] (a replay needs ['kind', "
+                     "'time', 'replay']; evaluate.py's incidents.json has them)"),
+    ({"kind": "collision", "time": 3.0, "replay": 5},
+     "the incident report's 'replay' must be a snapshot mapping of ['map', 'duration', "
+     "'ego', 'cars', 'replay'], got 5"),
+    ({"kind": "collision", "time": 3.0, "replay": {}},
+     "the incident report's 'replay' snapshot lacks ['map', 'duration', 'ego', 'cars', "
+     "'replay'] (a snapshot has ['map', 'duration', 'ego', 'cars', 'replay'])"),
+    ({"kind": "crash", "time": 3.0, "replay": {}},
+     "the incident report's 'kind' must be one of ['collision', 'acceleration', 'jerk', "
+     "'speed', 'lane', 'off_road'], got 'crash'"),
+    ({"kind": "collision", "time": 3.0, "replay": {"map": "original", "duration": 5.0,
+                                                   "ego": {}, "cars": [], "replay": {}}},
+     "the incident report's 'replay.replay' must be a mapping of ['traffic_step', "
+     "'generator_state', 'respawn_blocked_steps', 'source'], got {}"),
+    ("x", "an incident report must be a mapping, got str ('x')"),
+])
+def test_an_incident_report_is_validated_as_a_whole(report, message):
+    from sdc_gym.scenarios.replay import incident_scenario
+
+    with pytest.raises(ValueError) as raised:
+        incident_scenario(report)
+    assert str(raised.value) == message
+
+
+def test_a_broken_report_in_incidents_json_names_the_file_and_index(tmp_path):
+    import json
+
+    from evaluation.scenario_runs import scenario_cases
+
+    path = tmp_path / "incidents.json"
+    path.write_text(json.dumps([{"replay": 5}]))
+    with pytest.raises(SystemExit) as raised:
+        scenario_cases(path)
+    assert str(raised.value) == (f"--scenario {path}: report 0: the incident report lacks "
+                                 "['kind', 'time'] (a replay needs ['kind', 'time', 'replay']; "
+                                 "evaluate.py's incidents.json has them)")
