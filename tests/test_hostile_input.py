@@ -441,3 +441,69 @@ def test_a_broken_report_in_incidents_json_names_the_file_and_index(tmp_path):
     assert str(raised.value) == (f"--scenario {path}: report 0: the incident report lacks "
                                  "['kind', 'time'] (a replay needs ['kind', 'time', 'replay']; "
                                  "evaluate.py's incidents.json has them)")
+
+
+# ------------------------------------------------------------------------ train.py
+def train_config(tmp_path: Path, *cli: str, text: str | None = None, **content) -> dict:
+    import train
+
+    path = tmp_path / "run.yaml"
+    path.write_text(text if text is not None else yaml.safe_dump(
+        {"env": "sdc_gym/HighwayLoopBehavior-v0",
+         "config": {"highway": {"max_duration": 20.0}}, **content}))
+    args = train.parse_args(["--config", str(path), "--output", str(tmp_path / "run"), *cli])
+    return train.run_config(args)
+
+
+@pytest.mark.parametrize("name", ["torch.nn.ReLU", "nn.ReLU", "ReLU", "relu"])
+def test_an_activation_is_named_and_resolved_to_its_torch_class(tmp_path, name):
+    from torch import nn
+
+    from sdc_gym.validation.run_config import resolved_policy_kwargs
+
+    config = train_config(tmp_path, "--hp", f"policy_kwargs.activation_fn={name}")
+    assert config["hyperparams"]["policy_kwargs"]["activation_fn"] == name  # kept as text
+    assert resolved_policy_kwargs(config["hyperparams"])["policy_kwargs"][
+        "activation_fn"] is nn.ReLU
+
+
+@pytest.mark.parametrize("cli, content, message", [
+    (["--hp", "policy_kwargs.activation_fn=torch.nn.Relu6"], {},
+     " (hyperparameters): hyperparameter 'policy_kwargs.activation_fn' must be one of "
+     "['elu', 'gelu', 'leaky_relu', 'relu', 'selu', 'sigmoid', 'silu', 'tanh'] (or the "
+     "torch.nn class name, e.g. 'torch.nn.ReLU'), got 'torch.nn.Relu6'"),
+    (["--hp", "policy_kwargs.net_arch=[0]"], {},
+     " (hyperparameters): hyperparameter 'policy_kwargs.net_arch' must be a list of at most "
+     "16 layer widths, each an int in [1, 4096], or a mapping of ['pi', 'vf', 'qf'] to such "
+     "lists, got [0]"),
+    (["--algo", "sac"], {},
+     ": algo 'sac' learns Box actions; sdc_gym/HighwayLoopBehavior-v0 has Discrete actions "
+     "(Discrete(9)): use one of ['ppo', 'a2c', 'dqn'] (the behavior envs take config "
+     "action: discrete or continuous)"),
+])
+def test_bad_hyperparameters_and_algorithms_are_refused_before_sb3(tmp_path, cli, content,
+                                                                   message):
+    with pytest.raises(SystemExit) as raised:
+        train_config(tmp_path, *cli, **content)
+    assert str(raised.value) == f"{tmp_path / 'run.yaml'}{message}"
+    assert not (tmp_path / "run").exists()
+
+
+def test_sac_on_the_continuous_behavior_env_is_valid(tmp_path):
+    config = train_config(tmp_path, "--algo", "sac", config={
+        "action": "continuous", "highway": {"max_duration": 20.0}})
+    assert config["algo"] == "sac"
+
+
+def test_an_empty_run_config_and_a_duplicated_key_are_refused(tmp_path):
+    with pytest.raises(SystemExit) as raised:
+        train_config(tmp_path, text="# nothing\n")
+    assert str(raised.value).startswith(f"{tmp_path / 'run.yaml'}: the run config is empty; "
+                                        "give the keys to set (valid: [")
+    assert str(raised.value).endswith("or drop --config to train the defaults "
+                                      "(sdc_gym/HighwayLoopBehavior-v0, ppo)")
+    with pytest.raises(SystemExit) as raised:
+        train_config(tmp_path, text="algo: ppo\ntimesteps: 10\nalgo: dqn\n")
+    assert str(raised.value) == (f"{tmp_path / 'run.yaml'}:3: the YAML file is refused: "
+                                 "duplicate key 'algo' (first at line 1); each key may appear "
+                                 "once in a mapping")
