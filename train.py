@@ -54,6 +54,7 @@ import yaml
 import sdc_gym  # noqa: F401  (registers the env ids)
 from agents import checkpoints as ckpt
 from evaluation.files import atomic_write_text
+from evaluation.run_folders import remove_stale_temporaries
 from sdc_gym.config import ConfigError
 from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
@@ -358,6 +359,8 @@ def main(argv: list[str] | None = None) -> Path:
     torch.set_num_threads(max(args.torch_threads, 1))
     config = run_config(args)  # every value checked, the env config too, before any process
     args.output.mkdir(parents=True, exist_ok=True)
+    for stale in remove_stale_temporaries(args.output):  # a killed run's half files
+        print(f"removed {stale} (a temporary file of a run that was killed)")
     if not args.resume:
         atomic_write_text(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:

@@ -507,3 +507,29 @@ def test_an_empty_run_config_and_a_duplicated_key_are_refused(tmp_path):
     assert str(raised.value) == (f"{tmp_path / 'run.yaml'}:3: the YAML file is refused: "
                                  "duplicate key 'algo' (first at line 1); each key may appear "
                                  "once in a mapping")
+
+
+# ------------------------------------------------------------------------ stale temp files
+def test_a_killed_runs_temporary_files_are_removed_when_the_folder_is_used_again(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    from evaluation.run_folders import remove_stale_temporaries
+
+    ended = subprocess.Popen([sys.executable, "-c", "pass"])
+    ended.wait()
+    live = os.getppid()  # pytest's parent: alive while the test runs
+    (tmp_path / "checkpoints").mkdir()
+    stale = [tmp_path / "checkpoints" / ".replay_buffer.pkl.k2j4x9.tmp",
+             tmp_path / f".returns.png.{ended.pid}.tmp", tmp_path / f".x.csv.{os.getpid()}.tmp"]
+    kept = [tmp_path / f".returns.png.{live}.tmp", tmp_path / "config.yaml",
+            tmp_path / "checkpoints" / "model_100_steps.zip"]
+    for path in stale + kept:
+        path.write_bytes(b"x" * 100)
+    (tmp_path / ".best_model.tmp").mkdir()
+    (tmp_path / ".best_model.tmp" / "state.pkl").write_bytes(b"x")
+    removed = remove_stale_temporaries(tmp_path)
+    assert sorted(removed) == sorted([*stale, tmp_path / ".best_model.tmp"])
+    assert all(path.exists() for path in kept)
+    assert not any(path.exists() for path in stale)
