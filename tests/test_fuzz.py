@@ -497,3 +497,94 @@ def test_a_batch_after_an_episode_ended_refuses_what_it_refuses_before(env_id):
 
     check()
     envs.close()
+
+
+# ------------------------------------------------------------------------ scenario files
+CAR = st.fixed_dictionaries({"lane": st.one_of(st.integers(-1, 4), HOSTILE)}, optional={
+    "gap": st.one_of(st.sampled_from([-40.0, 0.0, 2.0, 6.0, 30.0, 1e9]), HOSTILE),
+    "speed": st.one_of(st.floats(0.0, 30.0), HOSTILE), "kind": st.sampled_from(
+        ["car", "truck", "semi", "plane"])})
+SCENARIO = st.fixed_dictionaries({}, optional={
+    "ego": st.fixed_dictionaries({}, optional={
+        "lane": st.one_of(st.integers(-1, 4), HOSTILE),
+        "d": st.one_of(st.floats(-5.0, 100.0), HOSTILE), "speed": st.floats(0.0, 30.0)}),
+    "cars": st.lists(CAR, max_size=4),
+    "duration": st.one_of(st.floats(0.1, 2.0), HOSTILE),
+    "success": st.fixed_dictionaries({}, optional={"reach_lane": st.fixed_dictionaries(
+        {"lane": st.integers(-1, 6), "within": st.floats(1.0, 50.0)})})})
+
+
+@given(scenario=SCENARIO)
+@FUZZ
+def test_generated_scenario_files_are_a_clear_error_or_an_episode(scenario, tmp_path_factory):
+    import yaml
+
+    path = tmp_path_factory.mktemp("scenarios") / "case.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"max_duration": 2.0},
+                   disable_env_checker=True)
+    try:
+        env.reset(seed=0, options={"scenario": str(path)})
+        env.step(np.zeros((0, 2)))
+    except ConfigError as error:
+        assert str(error).startswith(str(path)), error  # file (and line) named
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------------ incident reports
+@given(report=st.one_of(HOSTILE, st.dictionaries(
+    st.sampled_from(["kind", "time", "replay", "agent", "seed"]),
+    st.one_of(HOSTILE, st.sampled_from(["collision", "jerk"]), st.fixed_dictionaries(
+        {}, optional={key: HOSTILE for key in ("map", "duration", "ego", "cars", "replay")})),
+    max_size=5)))
+@FUZZ
+def test_generated_incident_reports_are_a_scenario_or_a_clear_error(report):
+    from sdc_gym.scenarios import load_scenario
+    from sdc_gym.scenarios.replay import incident_scenario
+
+    try:
+        scenario = incident_scenario(report)
+    except ValueError as error:
+        assert "incident report" in str(error), error
+        return
+    try:
+        load_scenario(scenario)
+    except ConfigError as error:
+        assert str(error)
+
+
+# ------------------------------------------------------------------------ run configs
+RUN_VALUES = st.fixed_dictionaries({}, optional={
+    "algo": st.one_of(st.sampled_from(["ppo", "dqn", "sac", "a2c", "ddpg"]), HOSTILE),
+    "timesteps": HOSTILE_NUMBERS, "n_envs": HOSTILE_NUMBERS, "seed": HOSTILE_NUMBERS,
+    "eval": st.one_of(HOSTILE, st.fixed_dictionaries({}, optional={
+        "every": HOSTILE_NUMBERS, "episodes": HOSTILE_NUMBERS})),
+    "config": st.one_of(HOSTILE, st.just({"action": "continuous"}))})
+HP_OVERRIDES = st.lists(st.sampled_from([
+    "learning_rate=1e-4", "learning_rate=abc", "gamma=2", "policy_kwargs.net_arch=[0]",
+    "policy_kwargs.net_arch=[64, 64]", "policy_kwargs.activation_fn=torch.nn.ReLU",
+    "policy_kwargs.activation_fn=os.system", "policy_kwargs=5", "n_steps=[1]",
+    "batch_size=-1", "a: &a [*a]"]), max_size=3)
+
+
+@given(values=RUN_VALUES, hp=HP_OVERRIDES)
+@FUZZ
+def test_generated_run_configs_and_hyperparameters_resolve_or_exit_clearly(values, hp,
+                                                                         tmp_path_factory):
+    import yaml
+
+    import train
+
+    folder = tmp_path_factory.mktemp("run")
+    path = folder / "run.yaml"
+    path.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", **values}))
+    cli = [item for override in hp for item in ("--hp", override)]
+    try:
+        config = train.run_config(train.parse_args(
+            ["--config", str(path), "--output", str(folder / "out"), *cli]))
+    except SystemExit as error:
+        assert isinstance(error.code, str) and error.code, error
+        assert not (folder / "out").exists()
+        return
+    assert config["algo"] in ("ppo", "dqn", "sac", "a2c")
