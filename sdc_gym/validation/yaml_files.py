@@ -8,6 +8,7 @@ What a hostile YAML text can cost is bounded before anything is built from it:
   100 kB/s on a loaded 2-core machine; the project's largest YAML file is 2 kB);
 * its nesting: at most :data:`MAX_YAML_DEPTH` levels, checked while composing (a
   ``[[[[...`` text otherwise ends in a ``RecursionError``);
+* its nodes: at most :data:`MAX_YAML_NODES`, counted while composing;
 * its aliases: the document *as expanded* (every alias counted as the whole node it
   names) has at most :data:`MAX_YAML_NODES` nodes. A "billion laughs" file (352 bytes of
   nested aliases, 10^9 leaves) is refused after composing its ~100 nodes, by a count
@@ -36,8 +37,10 @@ MAX_YAML_BYTES: Final = 256 * 1024
 """The largest YAML text read (256 KiB; parsed in under 3 s on the loaded machine)."""
 MAX_YAML_DEPTH: Final = 64
 """Nesting levels of collections in a YAML document."""
-MAX_YAML_NODES: Final = 200_000
-"""Nodes of a YAML document with every alias expanded (a 10,000-car scenario: 90,000)."""
+MAX_YAML_NODES: Final = 50_000
+"""Nodes of a YAML document, composed and with every alias expanded (a scenario of
+1,000 cars, the traffic's bound: 9,000). PyYAML composes about 6,000 nodes a second on the
+loaded 2-core machine, so a file costs at most some 8 s (``benchmarks/hostile_costs.py``)."""
 
 
 class YamlLimitError(yaml.YAMLError):
@@ -58,8 +61,15 @@ class SafeYamlLoader(yaml.SafeLoader):
     (the alias bound is checked on the composed node graph by :func:`compose`)."""
 
     _depth = 0
+    _composed = 0
 
     def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+        self._composed += 1
+        if self._composed > MAX_YAML_NODES:  # before the time to compose them is spent
+            mark = self.peek_event().start_mark
+            raise YamlLimitError(mark.line + 1, f"line {mark.line + 1}: the document has "
+                                 f"more than {MAX_YAML_NODES:,} nodes (the bound of every "
+                                 "YAML file)")
         if self._depth >= MAX_YAML_DEPTH:
             mark = self.peek_event().start_mark
             raise YamlLimitError(mark.line + 1, f"line {mark.line + 1}: nested deeper than "
