@@ -533,3 +533,17 @@ def test_a_killed_runs_temporary_files_are_removed_when_the_folder_is_used_again
     assert sorted(removed) == sorted([*stale, tmp_path / ".best_model.tmp"])
     assert all(path.exists() for path in kept)
     assert not any(path.exists() for path in stale)
+
+
+# ------------------------------------------------------------------------ evaluate.py
+def test_an_agent_that_cannot_drive_the_env_is_refused_before_any_episode(tmp_path):
+    import evaluate
+
+    with pytest.raises(SystemExit) as raised:
+        evaluate.main(["--agents", "dbw_ground_truth", "--output", str(tmp_path / "run"),
+                       "--episodes", "1", "--workers", "1", "--no-progress"])
+    assert str(raised.value) == (
+        "--agents: agent 'dbw_ground_truth' drives sdc_gym/TrackLoop-v0, not "
+        "sdc_gym/HighwayLoop-v0; the agents for sdc_gym/HighwayLoop-v0: fsm_bold, "
+        "fsm_bold_kf, fsm_conservative, fsm_conservative_kf, lane_keeping")
+    assert not (tmp_path / "run").exists()
