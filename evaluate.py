@@ -75,7 +75,7 @@ import gymnasium as gym
 from rich.console import Console
 
 from agents import capstone, external
-from agents.registry import AGENT_KINDS, AGENTS, parse_agent_spec
+from agents.registry import AGENT_KINDS, AGENTS, check_agent_env, parse_agent_spec
 from evaluation import run_folders, statistics
 from evaluation.analysis import analyse, terminal_output
 from evaluation.compare import compare_main
@@ -98,7 +98,7 @@ from evaluation.warmup import warm_up
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.ray import LOCAL
 from sdc_gym.units import METERS_PER_MILE
-from sdc_gym.validation.text_files import read_yaml
+from sdc_gym.validation.yaml_files import read_yaml
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
 COMMITTED_POLICY = "dqn:agents/highway/policies/dqn_highway.zip"
@@ -387,6 +387,11 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     env_id, env_config = env_settings(args)
     if args.agents is None:
         args.agents = list(DEFAULT_TRACK_AGENTS if env_id in TRACK_ENVS else DEFAULT_AGENTS)
+    try:  # every agent can drive the env, before any episode starts
+        for agent in args.agents:
+            check_agent_env(agent, env_id)
+    except ValueError as error:
+        raise SystemExit(f"--agents: {error}") from None
     try:
         probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:

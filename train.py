@@ -54,15 +54,18 @@ import yaml
 import sdc_gym  # noqa: F401  (registers the env ids)
 from agents import checkpoints as ckpt
 from evaluation.files import atomic_write_text
+from evaluation.run_folders import remove_stale_temporaries
 from sdc_gym.config import ConfigError
 from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
     ALGORITHMS,
     EVAL_DEFAULTS,
+    check_algorithm_space,
     check_hyperparams,
     check_run_config,
+    resolved_policy_kwargs,
 )
-from sdc_gym.validation.text_files import parse_yaml
+from sdc_gym.validation.yaml_files import parse_yaml
 from training.driving_metrics import driving_metrics
 from training.yaml_files import read_yaml
 
@@ -216,6 +219,10 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         raise SystemExit(f"{args.output} already holds a run; use --resume or another --output")
     source = str(args.config) if args.config is not None else "train.py"
     data = read_yaml(args.config) if args.config is not None else {}
+    if args.config is not None and not data:
+        raise SystemExit(f"{args.config}: the run config is empty; give the keys to set "
+                         f"(valid: {sorted(RUN_KEYS)}), or drop --config to train the "
+                         f"defaults ({DEFAULT_ENV}, ppo)")
     unknown = set(data) - RUN_KEYS
     if unknown:
         raise SystemExit(f"{args.config}: unknown keys {sorted(unknown)}; valid: "
@@ -296,6 +303,7 @@ def validate(config: dict[str, Any], source: str) -> None:
                               f"{source} (hyperparameters)")
         env = gym.make(config["env"], config=config["config"])
         env.close()
+        check_algorithm_space(config["algo"], env.action_space, config["env"], source)
     except (ConfigError, gym.error.Error) as error:
         raise SystemExit(str(error)) from None
     except (ValueError, TypeError) as error:  # an env's own check outside ConfigError
@@ -351,6 +359,8 @@ def main(argv: list[str] | None = None) -> Path:
     torch.set_num_threads(max(args.torch_threads, 1))
     config = run_config(args)  # every value checked, the env config too, before any process
     args.output.mkdir(parents=True, exist_ok=True)
+    for stale in remove_stale_temporaries(args.output):  # a killed run's half files
+        print(f"removed {stale} (a temporary file of a run that was killed)")
     if not args.resume:
         atomic_write_text(args.output / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     with (args.output / "command.txt").open("a", encoding="utf-8") as handle:
@@ -381,7 +391,8 @@ def main(argv: list[str] | None = None) -> Path:
         policy = hyper.pop("policy", "MultiInputPolicy" if isinstance(
             vec_env.observation_space, gym.spaces.Dict) else "MlpPolicy")
         model = algo(policy, vec_env, seed=config["seed"], verbose=0,
-                     tensorboard_log=str(args.output / "tensorboard"), **hyper)
+                     tensorboard_log=str(args.output / "tensorboard"),
+                     **resolved_policy_kwargs(hyper))
     every = max(int(config["checkpoint_every"]) // config["n_envs"], 1)
     callbacks = [ckpt.checkpoint_callback(every, checkpoints, config["algo"], off_policy),
                  driving_callback()]

@@ -24,9 +24,8 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
-import yaml
 
-from sdc_gym.config import resolve_config
+from sdc_gym.config import excerpt, resolve_config
 from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
 from sdc_gym.envs.track_behavior import TrackLoopBehaviorEnv
 from sdc_gym.stack.highway.behavior import BehaviorDecision
@@ -40,6 +39,7 @@ from sdc_gym.stack.highway.world_model import WorldModel
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
 from sdc_gym.stack.track.decisions import TrackDecisionBehavior, TrackFeatures
 from sdc_gym.stack.track.detector import GroundTruthLightSource
+from sdc_gym.validation.yaml_files import read_yaml
 
 SB3_KINDS = ("ppo", "dqn", "sac", "a2c")
 """Agent spec prefixes of SB3 models: ``<kind>:<path to model.zip>``."""
@@ -80,7 +80,11 @@ def training_config(path: str | Path) -> tuple[str | None, dict[str, Any]]:
     for candidate in (model_path.with_suffix(".yaml"), model_path.parent / "config.yaml",
                       model_path.parent.parent / "config.yaml"):
         if candidate.is_file():
-            data = yaml.safe_load(candidate.read_text(encoding="utf-8")) or {}
+            data = read_yaml(candidate, "policy's training config") or {}
+            if not isinstance(data, dict) or not isinstance(data.get("config") or {}, dict):
+                raise ValueError(f"{candidate}: the policy's training config must be a "
+                                 "mapping with 'env' and a mapping 'config', got "
+                                 f"{excerpt(data)}")
             return data.get("env"), dict(data.get("config") or {})
     return None, {}
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import gymnasium as gym
 
@@ -22,7 +22,8 @@ from agents.protocol import Agent, EpisodeAborted
 from agents.track.dbw_agent import dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
-__all__ = ["AGENTS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label", "make_agent",
+__all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label",
+           "check_agent_env", "make_agent",
            "parse_agent_spec"]
 
 
@@ -89,6 +90,26 @@ AGENT_KINDS: dict[str, AgentKindFactory] = {
 """Agent specs ``"kind:argument"``, an agent per argument (a command, a model file...)."""
 
 AGENT_KIND_SEPARATOR = ":"
+
+
+HIGHWAY_PATH_ENVS: Final = ("sdc_gym/HighwayLoop-v0",)
+TRACK_ENVS: Final = ("sdc_gym/TrackLoop-v0",)
+AGENT_ENVS: Final[dict[str, tuple[str, ...]]] = {
+    name: TRACK_ENVS if name.startswith("dbw_") else HIGHWAY_PATH_ENVS for name in AGENTS}
+"""The envs each named agent drives: the highway agents send paths (HighwayLoop-v0), the
+drive-by-wire stacks throttle, brake and steering (TrackLoop-v0). The ``kind:argument``
+agents (external planners, trained policies) check their env when they are built."""
+
+
+def check_agent_env(spec: str, env_id: str) -> None:
+    """``ValueError`` naming the agent, the env and the envs it drives when a named agent
+    cannot drive ``env_id`` (``--agents dbw_ground_truth`` on the highway raised an
+    AttributeError in every episode)."""
+    kind, name = parse_agent_spec(spec)
+    if kind is None and env_id not in AGENT_ENVS[name]:
+        fits = sorted(other for other, envs in AGENT_ENVS.items() if env_id in envs)
+        raise ValueError(f"agent {name!r} drives {', '.join(AGENT_ENVS[name])}, not {env_id}"
+                         f"; the agents for {env_id}: {', '.join(fits) or 'none by name'}")
 
 
 def _valid_agents() -> str:

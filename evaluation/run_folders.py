@@ -53,6 +53,38 @@ def point_latest_at(folder: Path, root: Path = RESULTS_ROOT) -> Path:
     return link
 
 
+def _pid_alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # another user's live process
+        return True
+    return True
+
+
+def remove_stale_temporaries(folder: Path) -> list[Path]:
+    """Remove the temporary files a killed run left in ``folder`` (and below): the
+    ``.NAME.<random>.tmp`` of an atomic write (checkpoints, replay buffers of 11-22 MB,
+    figures ``.X.png.PID.tmp``) and ``.NAME.tmp`` folders. One whose name carries the pid
+    of a live process other than this one is kept (a writer still at work). Called when
+    train.py or evaluate.py uses a run folder again; returns what was removed."""
+    removed: list[Path] = []
+    if not folder.is_dir():
+        return removed
+    for path in sorted(folder.rglob(".*.tmp")):
+        parts = path.name.split(".")
+        pid = int(parts[-2]) if len(parts) >= 4 and parts[-2].isdigit() else None
+        if pid is not None and pid != os.getpid() and _pid_alive(pid):
+            continue
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
+        removed.append(path)
+    return removed
+
+
 def is_empty_folder(path: Path) -> bool:
     return path.is_dir() and not any(path.iterdir())
 
@@ -70,6 +102,7 @@ def prepare_output(output: Path, overwrite: bool, owned: Iterable[str]) -> None:
         raise SystemExit(f"--output {output} already holds files (a previous run?); pass "
                          "--overwrite to replace its results, or choose another folder "
                          f"(without --output each run gets its own under {RESULTS_ROOT}/)")
+    remove_stale_temporaries(output)
     for name in owned:
         path = output / name
         if path.is_symlink() or path.is_file():

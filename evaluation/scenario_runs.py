@@ -80,9 +80,12 @@ def _replay_cases(path: Path) -> list[ScenarioCase]:
         raise SystemExit(f"--scenario {path}: expected a JSON array of incident reports")
     cases = []
     for index, report in enumerate(reports):
-        if not isinstance(report, dict) or "replay" not in report:
-            continue
-        scenario = incident_scenario(report)
+        if not isinstance(report, dict) or report.get("replay") is None:
+            continue  # an incident of an env without snapshots (the track's)
+        try:
+            scenario = incident_scenario(report)
+        except ValueError as error:
+            raise SystemExit(f"--scenario {path}: report {index}: {error}") from None
         scenario["name"] = f"{index}_{scenario['name']}"
         try:
             load_scenario(scenario)

@@ -10,12 +10,41 @@ from __future__ import annotations
 
 import copy
 import difflib
+import reprlib
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, Final
 
 
 class ConfigError(ValueError):
     """An unknown config key or a value of the wrong type."""
+
+
+EXCERPT_CHARS: Final = 200
+"""The most characters of a bad value an error message quotes."""
+
+_EXCERPT = reprlib.Repr()  # Python 3.11's Repr takes no keyword arguments
+_EXCERPT.maxlevel = 3
+_EXCERPT.maxtuple = _EXCERPT.maxlist = _EXCERPT.maxarray = _EXCERPT.maxdict = 6
+_EXCERPT.maxset = _EXCERPT.maxfrozenset = _EXCERPT.maxdeque = 6
+_EXCERPT.maxstring, _EXCERPT.maxlong, _EXCERPT.maxother = 60, 40, 60
+
+
+def excerpt(value: Any, limit: int = EXCERPT_CHARS) -> str:
+    """A bounded ``repr`` of ``value`` for an error message: a few items of each
+    collection, a few levels, at most ``limit`` characters (a 10,000-car list gave a
+    370,105-character message, a list of aliased leaves 5.8 MB). Built without the full
+    repr, so that the message costs no time or memory whatever the value."""
+    text = _EXCERPT.repr(value)
+    if isinstance(value, list | tuple | dict | set) and len(value) > _EXCERPT.maxlist:
+        text += f" ({len(value):,} items)"
+    return shorten(text, limit)
+
+
+def shorten(text: str, limit: int = EXCERPT_CHARS) -> str:
+    """``text`` cut to at most ``limit`` characters (the cut said)."""
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit - 30]}... ({len(text):,} characters)"
 
 
 def _type_name(value: Any) -> str:
@@ -68,7 +97,7 @@ def resolve_config(
         if not _compatible(default, value):
             raise ConfigError(
                 f"{owner}: config key {key!r} expects {_type_name(default)}, "
-                f"got {_type_name(value)} ({value!r})"
+                f"got {_type_name(value)} ({excerpt(value)})"
             )
         if isinstance(default, Mapping) and default:
             resolved[key] = resolve_config(default, value, owner=f"{owner}.{key}")
@@ -80,4 +109,5 @@ def resolve_config(
 def require(condition: bool, owner: str, key: str, expectation: str, value: Any) -> None:
     """Raise :class:`ConfigError` unless ``condition``: ``key`` must satisfy ``expectation``."""
     if not condition:
-        raise ConfigError(f"{owner}: config key {key!r} must be {expectation}, got {value!r}")
+        raise ConfigError(f"{owner}: config key {key!r} must be {expectation}, "
+                          f"got {excerpt(value)}")

@@ -387,3 +387,204 @@ def test_the_track_batch_refuses_bad_commands_before_setting_any():
     assert pickle.dumps(envs.unwrapped.world) == before  # env 0's good command not set
     envs.step(good.astype(np.int64) * 0)  # real numbers of the right shape: accepted
     envs.close()
+
+
+# ------------------------------------------------------------------------ YAML texts
+YAML_TOKENS = st.sampled_from(["a: ", "b: ", "a: 1\n", "&x ", "*x", "&y [", "*y", "[", "]",
+                               "{", "}", ", ", "- ", "\n", "  ", "1e-4", "<<: *x\n", "'s'",
+                               ": ", "!!python/object:os.system ", "&x [*x]", "? "])
+
+
+@given(tokens=st.lists(YAML_TOKENS, max_size=40))
+@FUZZ
+def test_generated_yaml_texts_are_data_or_a_yaml_error(tokens):
+    """Every YAML text through the one loader: data, or a yaml.YAMLError (never a
+    RecursionError, a Python object or an unbounded expansion)."""
+    import yaml
+
+    from sdc_gym.validation.yaml_files import parse_yaml_lines
+
+    text = "".join(tokens)
+    try:
+        data, lines = parse_yaml_lines(text)
+    except yaml.YAMLError as error:
+        assert str(error)
+        return
+    assert isinstance(lines, dict)
+    assert data is None or isinstance(data, dict | list | str | int | float | bool)
+
+
+# ------------------------------------------------------------------------ reset options
+RESET_OPTIONS = st.one_of(HOSTILE, st.dictionaries(
+    st.sampled_from(["scenario", "reset_mask", "seed", "Scenario"]),
+    st.one_of(st.none(), HOSTILE, st.lists(st.booleans(), max_size=3)), max_size=2))
+
+
+@pytest.mark.parametrize("env_id", list(ENVS))
+def test_generated_reset_options_reset_or_are_a_clear_error(env_id):
+    env = gym.make(env_id, config=BASE[env_id], disable_env_checker=True)
+
+    @FUZZ
+    @given(options=RESET_OPTIONS)
+    def check(options: Any) -> None:
+        try:
+            env.reset(seed=0, options=options)
+        except ValueError as error:  # ConfigError included
+            assert str(error)
+
+    check()
+    env.close()
+
+
+@pytest.mark.parametrize("env_id", VECTOR_IDS)
+def test_generated_batch_reset_options_reset_or_are_a_clear_error(env_id):
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                        config=BASE[env_id], autoreset_mode="Disabled")
+    envs.reset(seed=0)
+
+    @FUZZ
+    @given(options=RESET_OPTIONS)
+    def check(options: Any) -> None:
+        try:
+            envs.reset(seed=0, options=options)
+        except ValueError as error:
+            assert str(error)
+            return
+        mask = options.get("reset_mask") if isinstance(options, dict) else None
+        assert mask is None or np.asarray(mask).dtype == bool, f"{options!r} was accepted"
+
+    check()
+    envs.close()
+
+
+# ------------------------------------------------------------------------ after an episode
+@pytest.mark.parametrize("env_id", VECTOR_IDS)
+def test_a_batch_after_an_episode_ended_refuses_what_it_refuses_before(env_id):
+    """The step after an env ended (its action is ignored, NEXT_STEP) checks every env's
+    action all the same: a refused batch leaves the batch bit-identical."""
+    short = ({"highway": {"map": "oval", "max_duration": 0.4}}
+             if env_id == "sdc_gym/HighwayLoopBehavior-v0" else
+             {"track": {"track": "site", "max_duration": 0.4}, "decision_period_s": 0.2}
+             if env_id == "sdc_gym/TrackLoopBehavior-v0" else
+             {**BASE[env_id], "max_duration": 0.4})
+    envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
+                        config=short)
+    envs.reset(seed=0)
+    world = envs.unwrapped
+
+    def valid() -> Any:
+        action = envs.action_space.sample()
+        if env_id == "sdc_gym/HighwayLoop-v0":
+            action[:] = world.world.ego.xy[:, None, :]
+        return action
+
+    for _ in range(50):
+        _, _, terminated, truncated, _ = envs.step(valid())
+        if (terminated | truncated).any():
+            break
+    assert world._needs_reset.any()
+    state = world.world if hasattr(world, "world") else world.batch
+
+    @FUZZ
+    @given(bad=st.sampled_from([math.nan, math.inf, "x", None, True]))
+    def check(bad: Any) -> None:
+        action = np.asarray(valid(), dtype=object)
+        action[int(np.flatnonzero(world._needs_reset)[0])] = bad
+        before = pickle.dumps(state)
+        with pytest.raises(ValueError):
+            envs.step(action)
+        assert pickle.dumps(state) == before
+
+    check()
+    envs.close()
+
+
+# ------------------------------------------------------------------------ scenario files
+CAR = st.fixed_dictionaries({"lane": st.one_of(st.integers(-1, 4), HOSTILE)}, optional={
+    "gap": st.one_of(st.sampled_from([-40.0, 0.0, 2.0, 6.0, 30.0, 1e9]), HOSTILE),
+    "speed": st.one_of(st.floats(0.0, 30.0), HOSTILE), "kind": st.sampled_from(
+        ["car", "truck", "semi", "plane"])})
+SCENARIO = st.fixed_dictionaries({}, optional={
+    "ego": st.fixed_dictionaries({}, optional={
+        "lane": st.one_of(st.integers(-1, 4), HOSTILE),
+        "d": st.one_of(st.floats(-5.0, 100.0), HOSTILE), "speed": st.floats(0.0, 30.0)}),
+    "cars": st.lists(CAR, max_size=4),
+    "duration": st.one_of(st.floats(0.1, 2.0), HOSTILE),
+    "success": st.fixed_dictionaries({}, optional={"reach_lane": st.fixed_dictionaries(
+        {"lane": st.integers(-1, 6), "within": st.floats(1.0, 50.0)})})})
+
+
+@given(scenario=SCENARIO)
+@FUZZ
+def test_generated_scenario_files_are_a_clear_error_or_an_episode(scenario, tmp_path_factory):
+    import yaml
+
+    path = tmp_path_factory.mktemp("scenarios") / "case.yaml"
+    path.write_text(yaml.safe_dump(scenario))
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"max_duration": 2.0},
+                   disable_env_checker=True)
+    try:
+        env.reset(seed=0, options={"scenario": str(path)})
+        env.step(np.zeros((0, 2)))
+    except ConfigError as error:
+        assert str(error).startswith(str(path)), error  # file (and line) named
+    finally:
+        env.close()
+
+
+# ------------------------------------------------------------------------ incident reports
+@given(report=st.one_of(HOSTILE, st.dictionaries(
+    st.sampled_from(["kind", "time", "replay", "agent", "seed"]),
+    st.one_of(HOSTILE, st.sampled_from(["collision", "jerk"]), st.fixed_dictionaries(
+        {}, optional={key: HOSTILE for key in ("map", "duration", "ego", "cars", "replay")})),
+    max_size=5)))
+@FUZZ
+def test_generated_incident_reports_are_a_scenario_or_a_clear_error(report):
+    from sdc_gym.scenarios import load_scenario
+    from sdc_gym.scenarios.replay import incident_scenario
+
+    try:
+        scenario = incident_scenario(report)
+    except ValueError as error:
+        assert "incident report" in str(error), error
+        return
+    try:
+        load_scenario(scenario)
+    except ConfigError as error:
+        assert str(error)
+
+
+# ------------------------------------------------------------------------ run configs
+RUN_VALUES = st.fixed_dictionaries({}, optional={
+    "algo": st.one_of(st.sampled_from(["ppo", "dqn", "sac", "a2c", "ddpg"]), HOSTILE),
+    "timesteps": HOSTILE_NUMBERS, "n_envs": HOSTILE_NUMBERS, "seed": HOSTILE_NUMBERS,
+    "eval": st.one_of(HOSTILE, st.fixed_dictionaries({}, optional={
+        "every": HOSTILE_NUMBERS, "episodes": HOSTILE_NUMBERS})),
+    "config": st.one_of(HOSTILE, st.just({"action": "continuous"}))})
+HP_OVERRIDES = st.lists(st.sampled_from([
+    "learning_rate=1e-4", "learning_rate=abc", "gamma=2", "policy_kwargs.net_arch=[0]",
+    "policy_kwargs.net_arch=[64, 64]", "policy_kwargs.activation_fn=torch.nn.ReLU",
+    "policy_kwargs.activation_fn=os.system", "policy_kwargs=5", "n_steps=[1]",
+    "batch_size=-1", "a: &a [*a]"]), max_size=3)
+
+
+@given(values=RUN_VALUES, hp=HP_OVERRIDES)
+@FUZZ
+def test_generated_run_configs_and_hyperparameters_resolve_or_exit_clearly(values, hp,
+                                                                         tmp_path_factory):
+    import yaml
+
+    import train
+
+    folder = tmp_path_factory.mktemp("run")
+    path = folder / "run.yaml"
+    path.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", **values}))
+    cli = [item for override in hp for item in ("--hp", override)]
+    try:
+        config = train.run_config(train.parse_args(
+            ["--config", str(path), "--output", str(folder / "out"), *cli]))
+    except SystemExit as error:
+        assert isinstance(error.code, str) and error.code, error
+        assert not (folder / "out").exists()
+        return
+    assert config["algo"] in ("ppo", "dqn", "sac", "a2c")

@@ -1,13 +1,13 @@
 """YAML files of mappings (run configs, hyperparameter and sweep files), read with clear
 errors: UTF-8 of bounded size and YAML 1.2 numbers, as every sdc-gym file
-(:mod:`sdc_gym.validation.text_files`)."""
+(:mod:`sdc_gym.validation.yaml_files`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
-from sdc_gym.validation.text_files import read_yaml as read_yaml_file
+from sdc_gym.validation.yaml_files import read_yaml as read_yaml_file
 
 
 def read_yaml(path: Path, what: str = "YAML file") -> dict[str, Any]:

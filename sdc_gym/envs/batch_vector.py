@@ -32,7 +32,15 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 from numpy.typing import NDArray
 
-from sdc_gym.scenarios.options import CONFIG, batch_scenarios
+from sdc_gym.config import excerpt
+from sdc_gym.scenarios.options import (
+    CONFIG,
+    RESET_MASK,
+    batch_scenarios,
+    check_reset_options,
+    reset_mask,
+)
+from sdc_gym.validation.bounds import check_env_count
 
 _MODES = {mode.value: mode for mode in AutoresetMode}
 
@@ -48,11 +56,16 @@ def _autoreset_mode(value: AutoresetMode | str) -> AutoresetMode:
 class BatchVectorEnv(VectorEnv):
     """Seeding, autoreset and info assembly over a batch whose envs reset one at a time."""
 
+    reset_option_keys: tuple[str, ...] = ()
+    """The ``reset(options=...)`` keys besides ``reset_mask`` (the highway's: ``scenario``)."""
+
     def __init__(self, num_envs: int, autoreset_mode: AutoresetMode | str,
                  full_info: bool, render_mode: str | None, max_episode_steps: int | None,
                  duration_key: str) -> None:
-        if not (isinstance(num_envs, int) and num_envs >= 1):
-            raise ValueError(f"num_envs must be an int >= 1, got {num_envs!r}")
+        num_envs = check_env_count(num_envs)
+        if not isinstance(full_info, bool | np.bool_):
+            raise ValueError(f"full_info must be True or False, got {excerpt(full_info)} "
+                             f"({type(full_info).__name__})")
         if render_mode is not None:
             raise ValueError("the batched env does not render; render one env with gym.make")
         if max_episode_steps is not None:
@@ -119,12 +132,10 @@ class BatchVectorEnv(VectorEnv):
 
     def reset(self, *, seed: int | list[int | None] | None = None,
               options: dict[str, Any] | None = None) -> tuple[Any, dict[str, Any]]:
-        mask = None if options is None else options.get("reset_mask")
+        check_reset_options(options, type(self).__name__,
+                            (*self.reset_option_keys, RESET_MASK))
+        mask = reset_mask(options, self.num_envs)
         if mask is not None:
-            mask = np.asarray(mask, dtype=bool)
-            if mask.shape != (self.num_envs,):
-                raise ValueError(f"options['reset_mask'] must be {self.num_envs} bools, got "
-                                 f"shape {mask.shape}")
             if not self._ready and not mask.all():
                 raise RuntimeError("the first reset() must reset every env")
         rows = list(range(self.num_envs)) if mask is None else np.flatnonzero(mask).tolist()

@@ -15,7 +15,7 @@ from sdc_gym.envs.highway_behavior_world import (
     HighwayBehaviorWorld,
 )
 from sdc_gym.envs.highway_loop import HighwayLoopEnv
-from sdc_gym.scenarios.options import CONFIG, scenario_option
+from sdc_gym.scenarios.options import CONFIG, OPTION, check_reset_options, scenario_option
 from sdc_gym.stack.highway.decisions import ACTION_NAMES, HighwayDecision
 
 __all__ = ["ACTION_TYPES", "HighwayLoopBehaviorEnv", "behavior_spaces"]
@@ -156,6 +156,7 @@ class HighwayLoopBehaviorEnv(gym.Env):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32],
                                                               dict[str, Any]]:
+        check_reset_options(options, type(self).__name__, (OPTION,))
         super().reset(seed=seed)
         self._scenario = scenario_option(options, self._scenario)
         self.batch.reset_at(0, self.np_random, self._scenario)

@@ -37,6 +37,7 @@ from sdc_gym.stack.highway.perception import (
 )
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import WorldModel
+from sdc_gym.validation.actions import discrete_index
 from sdc_gym.validation.env_configs import check_highway_behavior_config
 from sdc_gym.vehicle.path_follower import PHYSICS_DT
 
@@ -143,9 +144,9 @@ class HighwayBehaviorWorld:
     def decode(self, action: Any, env: int = 0) -> HighwayDecision:
         """The decision an action stands for (``ValueError`` for an invalid one)."""
         if self.discrete:
-            if isinstance(action, np.ndarray) and action.shape in ((), (1,)):
-                action = action.reshape(()).item()
-            return HighwayDecision.from_index(action)
+            # an int, a NumPy int or an int array of shape () or (1,); not an object array
+            return HighwayDecision.from_index(discrete_index(action, len(ACTION_NAMES),
+                                                             ACTION_NAMES))
         return HighwayDecision.from_vector(action, self.executors.cruise_speed_mps)
 
     def decode_batch(self, actions: Any) -> tuple[NDArray[np.int64], NDArray[np.int64],

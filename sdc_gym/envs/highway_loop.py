@@ -18,7 +18,7 @@ from sdc_gym.envs.highway_world import (
 )
 from sdc_gym.envs.top_down_env import TopDownRenderEnv
 from sdc_gym.metrics import DrivingMetrics
-from sdc_gym.scenarios.options import CONFIG, scenario_option
+from sdc_gym.scenarios.options import CONFIG, OPTION, check_reset_options, scenario_option
 from sdc_gym.sensors.highway_sensors import TelemetryMessage
 from sdc_gym.traffic import HighwayTraffic
 from sdc_gym.traffic.state import PARKED
@@ -232,6 +232,7 @@ class HighwayLoopEnv(TopDownRenderEnv):
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+        check_reset_options(options, type(self).__name__, (OPTION,))
         super().reset(seed=seed)
         self._scenario = scenario_option(options, self._scenario)
         self.world.reset_at(0, self.np_random, self._scenario)

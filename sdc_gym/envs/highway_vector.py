@@ -26,6 +26,7 @@ from sdc_gym.envs.highway_behavior import behavior_spaces
 from sdc_gym.envs.highway_behavior_world import HighwayBehaviorWorld
 from sdc_gym.envs.highway_loop import highway_spaces
 from sdc_gym.envs.highway_world import HighwayWorld
+from sdc_gym.scenarios.options import OPTION
 from sdc_gym.stack.highway.decisions import ACTION_NAMES
 from sdc_gym.validation.actions import discrete_indices, real_array
 
@@ -37,6 +38,8 @@ class HighwayLoopBehaviorVectorEnv(BatchVectorEnv):
     """``num_envs`` ``sdc_gym/HighwayLoopBehavior-v0`` envs as one batch (see the module
     docstring). ``config`` is the single env's; actions are ``(num_envs,)`` ints
     (discrete) or ``(num_envs, 2)`` floats (continuous)."""
+
+    reset_option_keys = (OPTION,)
 
     def __init__(self, num_envs: int = 1, config: dict[str, Any] | None = None, *,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
@@ -82,6 +85,8 @@ class HighwayLoopVectorEnv(BatchVectorEnv):
     """``num_envs`` ``sdc_gym/HighwayLoop-v0`` envs as one batch (see the module docstring).
     Actions are ``(num_envs, path_points, 2)`` paths: fewer points by repeating the last
     real one (trailing repeats are padding, as for the single env)."""
+
+    reset_option_keys = (OPTION,)
 
     def __init__(self, num_envs: int = 1, config: dict[str, Any] | None = None, *,
                  autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,

@@ -47,9 +47,11 @@ from sdc_gym.scenarios.world_episodes import CONFIG, EpisodeSettings
 from sdc_gym.sensors.highway_sensors import HighwaySensors, SensorConfig
 from sdc_gym.traffic import IDMParameters, TrafficConfig
 from sdc_gym.traffic.batch import TrafficBatch
+from sdc_gym.traffic.placement import RENYI_PARKING, reset_capacity
 from sdc_gym.traffic.road_events import RoadEventRates
 from sdc_gym.traffic.state import PARKED
 from sdc_gym.validation.actions import real_array
+from sdc_gym.validation.bounds import check_env_count
 from sdc_gym.validation.env_configs import check_highway_config, check_highway_start
 from sdc_gym.vehicle.path_follower import PHYSICS_DT, PathFollower
 
@@ -186,8 +188,7 @@ class HighwayWorld:
     def __init__(self, config: dict[str, Any] | None = None, envs: int = 1,
                  owner: str = "HighwayLoop-v0") -> None:
         self.config = cfg = resolve_config(HIGHWAY_DEFAULTS, config, owner=owner)
-        require(isinstance(envs, int) and not isinstance(envs, bool) and envs >= 1, owner,
-                "num_envs", "an int >= 1", envs)
+        envs = check_env_count(envs, f"{owner}: num_envs")
         check_highway_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
         if cfg["latency_steps"] is None:
             cfg["latency_steps"] = cfg["steps_per_action"]
@@ -200,7 +201,7 @@ class HighwayWorld:
             self.road: HighwayMap = get_highway_map(cfg["map"], cfg["road"])
         except MapFormatError as error:
             raise ConfigError(f"{owner}: config key 'map': {error}") from None
-        check_highway_start(cfg, self.road.road_width, owner)
+        check_highway_start(cfg, self.road.road_width, owner, self.road.reference.length)
         traffic_cfg = dict(cfg["traffic"])
         traffic_cfg["idm"] = IDMParameters(**traffic_cfg["idm"])
         traffic_cfg.update(ego_length=cfg["ego_length"], ego_width=cfg["ego_width"])
@@ -224,6 +225,15 @@ class HighwayWorld:
         self.episodes = EpisodeSettings(cfg, owner, self.road, self.car_count, envs, _to_tuple)
         self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT,
                                     object_slots=self.episodes.object_slots)
+        capacity = reset_capacity(self.traffic)
+        if self.car_count > capacity:
+            raise ConfigError(
+                f"{owner}: config key 'traffic.car_count' must be at most {capacity} on this "
+                f"road ({self.road.lane_count} lanes, cars placed within +-"
+                f"{self.traffic.range - 10.0:.0f} m of the ego: spawn_range, capped at 0.45 x "
+                f"the {self.road.length:,.0f} m loop; a random layout fills "
+                f"{RENYI_PARKING:.0%} of it), got {self.car_count}; lower car_count or raise "
+                "spawn_range, or lower spawn_min_gap")
         self.slots = self.traffic.slots  # sensor-fusion rows: cars, then road objects
         self.sensors = HighwaySensors(self.sensor_config, self.slots, self.road.length,
                                       envs)
@@ -293,14 +303,14 @@ class HighwayWorld:
         of the last point dropped), or a clear ``ValueError``."""
         points = real_array(action, None, "path", f"(x, y) map points, shape (m, 2) with "
                             f"m <= path_points = {self.path_points}")
-        if points.size == 0:
-            return np.zeros((0, 2))
-        if points.ndim != 2 or points.shape[1] != 2:
+        if points.ndim != 2 or points.shape[1] != 2:  # the empty path too: shape (0, 2)
             raise ValueError(f"path must have shape (m, 2) with m <= {self.path_points}, "
                              f"got {points.shape}")
         if len(points) > self.path_points:
             raise ValueError(f"path has {len(points)} points; at most path_points = "
                              f"{self.path_points} (raise the 'path_points' config key)")
+        if len(points) == 0:
+            return np.zeros((0, 2))
         count = len(points)
         lengths = np.array([count])
         if not points.flags.c_contiguous:

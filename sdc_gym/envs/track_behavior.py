@@ -10,6 +10,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.envs.track_behavior_world import ACTION_TYPES, BEHAVIOR_DEFAULTS, TrackBehaviorWorld
 from sdc_gym.envs.track_loop import TrackLoopEnv
+from sdc_gym.scenarios.options import check_reset_options
 
 __all__ = ["ACTION_TYPES", "TrackLoopBehaviorEnv"]
 
@@ -99,6 +100,7 @@ class TrackLoopBehaviorEnv(gym.Env):
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[NDArray[np.float32],
                                                               dict[str, Any]]:
+        check_reset_options(options, type(self).__name__, ())  # no scenarios on a track
         super().reset(seed=seed)
         batch = self.batch
         batch.reset_at(0, self.np_random)

@@ -12,6 +12,7 @@ from sdc_gym.envs.top_down_env import TopDownRenderEnv
 from sdc_gym.envs.track_setup import TRACK_DEFAULTS, top_speed
 from sdc_gym.envs.track_world import TrackWorld
 from sdc_gym.metrics.track_metrics import TrackMetrics
+from sdc_gym.scenarios.options import check_reset_options
 from sdc_gym.units import MPS_TO_MPH
 from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT, VehicleState
 
@@ -275,6 +276,7 @@ class TrackLoopEnv(TopDownRenderEnv):
     # ------------------------------------------------------------------ Gymnasium API
     def reset(self, *, seed: int | None = None,
               options: dict[str, Any] | None = None) -> tuple[dict[str, Any], dict[str, Any]]:
+        check_reset_options(options, type(self).__name__, ())  # no scenarios on a track
         super().reset(seed=seed)
         self.world.reset_at(0, self.np_random)
         self._debug_path = np.zeros((0, 2))

@@ -38,7 +38,7 @@ from sdc_gym.sensors.track_camera import (
     TrackCamera,
 )
 from sdc_gym.validation.actions import real_array
-from sdc_gym.validation.env_configs import check_track_config
+from sdc_gym.validation.env_configs import check_start_s, check_track_config
 from sdc_gym.vehicle.dbw_vehicle import (
     PHYSICS_DT,
     VEHICLE_PRESETS,
@@ -364,6 +364,7 @@ class TrackSetup:
         """
         track, given = self.track, self.config["start_s"]
         reference = track.reference
+        check_start_s(given, track.length, owner)
         start = float(reference.wrap_s(given if given is not None else track.start_s))
         margin = 0.0 if given is not None else START_LINE_MARGIN_M
         for _ in range(track.light_count + 1):

@@ -107,7 +107,10 @@ class TrackLoopVectorEnv(BatchVectorEnv):
                              "brake_torque, steering_wheel_angle] per env")
         active = ~self._needs_reset  # NEXT_STEP: an env reset by this step does not run
         rows = np.flatnonzero(active).tolist()
-        commands = [world.setup.read_action(actions[env]) for env in rows]  # all checked
+        # Every env's action checked, an ended env's too (its action is ignored, but a NaN
+        # batch is a caller's bug the other vector envs refuse as well).
+        commands = [world.setup.read_action(actions[env]) for env in range(self.num_envs)]
+        commands = [commands[env] for env in rows]
         for env, command in zip(rows, commands, strict=True):
             world.state.command[env] = command
         reward, incidents = world.step(active)

@@ -59,6 +59,7 @@ from sdc_gym.metrics.track_metrics_batch import (
     stop_line_events,
 )
 from sdc_gym.units import MPS_TO_MPH
+from sdc_gym.validation.bounds import check_env_count
 from sdc_gym.vehicle.dbw_kernel import (
     SPEED,
     YAW,
@@ -86,8 +87,7 @@ class TrackWorld:
 
     def __init__(self, config: Mapping[str, Any] | None = None, *, envs: int = 1,
                  owner: str = "TrackLoop-v0") -> None:
-        if not (isinstance(envs, int) and envs >= 1):
-            raise ValueError(f"envs must be an int >= 1, got {envs!r}")
+        envs = check_env_count(envs, f"{owner}: num_envs")
         self.setup = setup = TrackSetup(config, owner)
         self.envs = envs
         self.config = setup.config

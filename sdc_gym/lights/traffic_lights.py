@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.config import ConfigError, resolve_config
+from sdc_gym.config import ConfigError, excerpt, resolve_config
 from sdc_gym.lights.light_kernel import LightSchedule, refresh_lights, states_at, times_to_change
 
 
@@ -95,7 +95,7 @@ class LightTiming:
             value = getattr(self, name)
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise ValueError(f"LightTiming.{name} must be a finite number > 0 s, "
-                                 f"got {value!r}")
+                                 f"got {excerpt(value)}")
 
     @property
     def cycle_s(self) -> float:
@@ -107,7 +107,8 @@ def _check_state(value: Any, where: str) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or (
             int(value) not in VALID_STATES):
         raise ValueError(f"{where}: light state must be one of "
-                         f"{', '.join(f'{s.name} {int(s)}' for s in LightState)}, got {value!r}")
+                         f"{', '.join(f'{s.name} {int(s)}' for s in LightState)}, "
+                         f"got {excerpt(value)}")
     return int(value)
 
 
@@ -120,21 +121,21 @@ def _parse_script(entry: Any, light: int) -> tuple[NDArray[np.float64], NDArray[
         return np.zeros(1), np.array([_check_state(entry, where)], dtype=np.int8)
     if isinstance(entry, str) or not isinstance(entry, Sequence) or len(entry) == 0:
         raise ValueError(f"{where}: expected None, a state, or a non-empty list of "
-                         f"(time_s, state) pairs, got {entry!r}")
+                         f"(time_s, state) pairs, got {excerpt(entry)}")
     times, states = [], []
     for row, pair in enumerate(entry):
         if isinstance(pair, str) or not isinstance(pair, Sequence) or len(pair) != 2:
             raise ValueError(f"{where}, entry {row}: expected a (time_s, state) pair, "
-                             f"got {pair!r}")
+                             f"got {excerpt(pair)}")
         time_s, state = pair
         if isinstance(time_s, bool) or not isinstance(time_s, int | float) or (
                 not math.isfinite(time_s)):
             raise ValueError(f"{where}, entry {row}: time must be a finite number of s, "
-                             f"got {time_s!r}")
+                             f"got {excerpt(time_s)}")
         times.append(float(time_s))
         states.append(_check_state(state, f"{where}, entry {row}"))
     if times[0] != 0.0:
-        raise ValueError(f"{where}: the first entry must be at time 0 s, got {times[0]!r}")
+        raise ValueError(f"{where}: the first entry must be at time 0 s, got {excerpt(times[0])}")
     if any(later <= earlier for earlier, later in itertools.pairwise(times)):
         raise ValueError(f"{where}: times must be strictly increasing, got {times}")
     return np.array(times), np.array(states, dtype=np.int8)
@@ -163,12 +164,12 @@ class TrafficLights:
         script: Sequence[LightScript] | None = None,
     ) -> None:
         if isinstance(count, bool) or not isinstance(count, int | np.integer) or count < 0:
-            raise ValueError(f"TrafficLights count must be an int >= 0, got {count!r}")
+            raise ValueError(f"TrafficLights count must be an int >= 0, got {excerpt(count)}")
         self.count = int(count)
         timings = [timing] * self.count if isinstance(timing, LightTiming) else list(timing)
         if len(timings) != self.count or not all(isinstance(t, LightTiming) for t in timings):
             raise ValueError(f"timing must be one LightTiming or {self.count} of them, "
-                             f"got {timing!r}")
+                             f"got {excerpt(timing)}")
         self.timings = tuple(timings)
         self._green_end = np.array([t.green_s for t in timings], dtype=np.float64)
         self._yellow_end = np.array([t.green_s + t.yellow_s for t in timings])
@@ -178,7 +179,7 @@ class TrafficLights:
             offsets = np.asarray(offsets_s, dtype=np.float64)
             if offsets.shape != (self.count,) or not np.all(np.isfinite(offsets)):
                 raise ValueError(f"offsets_s must be {self.count} finite numbers (s), "
-                                 f"got {offsets_s!r}")
+                                 f"got {excerpt(offsets_s)}")
             self._fixed_offsets = np.mod(offsets, self._cycle)
         entries = [None] * self.count if script is None else list(script)
         if len(entries) != self.count:

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from sdc_gym.road.highway_map import ROAD_KINDS, HighwayMap, MapFormatError, load_highway_map
 from sdc_gym.road.layout import Segment, sample_layout
+from sdc_gym.validation.text_files import check_path_text
 
 _DEFAULT_LAYOUT: tuple[Segment, ...] = (
     ("straight", None), ("arc", 1340.0, 30.0), ("straight", 290.0), ("arc", 126.0, 60.0),
@@ -60,6 +61,7 @@ def get_highway_map(spec: str, road: str = "auto") -> HighwayMap:
             raise MapFormatError(f"map {spec!r} is a built-in loop, not an open road "
                                  "(road: open needs a map file whose ends do not meet)")
         return _builtin(spec)
+    check_path_text(spec, "map", MapFormatError)
     path = Path(spec).expanduser()
     if not path.exists():
         raise MapFormatError(

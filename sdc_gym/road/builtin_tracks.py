@@ -30,6 +30,7 @@ import numpy as np
 from sdc_gym.geometry.reference_line import ReferenceLine
 from sdc_gym.road.layout import Segment, closing_lengths, sample_layout
 from sdc_gym.road.track_map import TrackFormatError, TrackMap, load_track
+from sdc_gym.validation.text_files import check_path_text
 
 _DEFAULT_LAYOUT: tuple[Segment, ...] = (
     ("straight", 400.0), ("arc", 240.0, 45.0), ("straight", None), ("arc", 55.0, 90.0),
@@ -146,6 +147,9 @@ def get_track_map(name_or_path: str, light_config: str | None = None) -> TrackMa
                 f"({light_config!r}) goes with a waypoint file only"
             )
         return _builtin(name_or_path)
+    check_path_text(name_or_path, "track", TrackFormatError)
+    if light_config is not None:
+        check_path_text(light_config, "light_config", TrackFormatError)
     path = Path(name_or_path).expanduser()
     if not path.exists():
         raise TrackFormatError(

@@ -27,22 +27,26 @@ is its projection onto the reference line. The original simulator's light poles 
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from sdc_gym.config import excerpt
 from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.reference_line import ReferenceLine, ReferenceLineError
 from sdc_gym.road.highway_map import MapFormatError
 from sdc_gym.road.stop_line_kernel import next_stop_line
 from sdc_gym.units import KMH_TO_MPS
+from sdc_gym.validation.bounds import MAX_CAMERA_PX, MAX_STOP_LINE_OFFSET_M, MAX_STOP_LINES
 from sdc_gym.validation.road_geometry import check_loop_points, check_reference_line
-from sdc_gym.validation.text_files import read_text, read_yaml
+from sdc_gym.validation.text_files import read_text
+from sdc_gym.validation.yaml_files import read_yaml
 
 # --- Lights (the original simulator; spec: poles about 24 m past their stop lines) ---------
 LIGHT_POLE_OFFSET_M = 24.0
@@ -256,6 +260,14 @@ class TrackMap:
             stop_s = stop_d = np.zeros(0)
         stop_s = np.atleast_1d(stop_s)
         stop_d = np.atleast_1d(stop_d)
+        off = np.flatnonzero(~(np.abs(stop_d) <= MAX_STOP_LINE_OFFSET_M))
+        if len(off):
+            line = int(off[0])
+            raise TrackFormatError(
+                f"{name}: stop line {line} at {stops[line].tolist()} is "
+                f"{abs(float(stop_d[line])):,.1f} m from the track's path; a stop line lies "
+                f"on the road, within {MAX_STOP_LINE_OFFSET_M:g} m of it (is the light config "
+                "the track's? the site's and the simulator's differ)")
 
         if light_pole_offset_m is None:
             light_pole_offset_m = SITE_LIGHT_POLE_OFFSET_M if is_site else LIGHT_POLE_OFFSET_M
@@ -264,10 +276,9 @@ class TrackMap:
         light_xy = reference.to_xy(light_s, np.full(len(light_s), LIGHT_LATERAL_OFFSET_M))
         light_xy = light_xy.reshape(-1, 2)
         # Road height under the light: the nearest waypoint's z (0 in the simulator).
-        if len(light_xy):
-            nearest = np.argmin(
-                np.hypot(*(waypoints[None, :, :2] - light_xy[:, None, :]).transpose(2, 0, 1)),
-                axis=1)
+        if len(light_xy):  # one light at a time: memory of one row of waypoints
+            nearest = np.array([np.argmin(np.hypot(*(waypoints[:, :2] - xy).T))
+                                for xy in light_xy], dtype=np.int64)
             light_z = waypoints[nearest, 2] + height
         else:
             light_z = np.zeros(0)
@@ -352,10 +363,10 @@ def _numbers(path: Path, line_number: int, fields: list[str], text: str) -> list
     try:
         values = [float(value) for value in fields]
     except ValueError as error:
-        raise TrackFormatError(f"{path}:{line_number}: not a number in {text!r} "
+        raise TrackFormatError(f"{path}:{line_number}: not a number in {excerpt(text)} "
                                f"({error})") from None
     if not all(math.isfinite(value) for value in values):
-        raise TrackFormatError(f"{path}:{line_number}: non-finite value in {text!r}")
+        raise TrackFormatError(f"{path}:{line_number}: non-finite value in {excerpt(text)}")
     return values
 
 
@@ -409,7 +420,7 @@ def read_track_file(path: str | os.PathLike[str]) -> TrackFile:
             raise TrackFormatError(
                 f"{path}:{line_number}: expected 4 fields 'x,y,z,yaw' (a 5th is ignored; or "
                 f"a first line 'x,y,z' then 'x,y,z,velocity' lines), got {len(fields)} "
-                f"field(s): {text!r}")
+                f"field(s): {excerpt(text)}")
     if len({len(fields) for _, fields, _ in rows}) > 1:
         line_number = next(n for n, f, _ in rows if len(f) != len(rows[0][1]))
         raise TrackFormatError(f"{path}:{line_number}: {len(rows[0][1])} fields on the first "
@@ -436,6 +447,23 @@ def _number(value: Any) -> bool:
     return isinstance(value, int | float) and not isinstance(value, bool)
 
 
+LIGHT_CONFIG_KEYS: Final = ("camera_info", "stop_line_positions", "is_site")
+"""The keys of a light config (the capstone's ``sim_traffic_light_config.yaml``)."""
+CAMERA_INFO_KEYS: Final = ("image_width", "image_height", "focal_length_x", "focal_length_y")
+
+
+def _refuse_unknown_keys(path: Path, prefix: str, data: dict[Any, Any],
+                         keys: tuple[str, ...]) -> None:
+    """A key nobody reads is a typo (``stop_lines_positions``), not silently no lights."""
+    for key in data:
+        if key not in keys:
+            close = difflib.get_close_matches(str(key), keys, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise TrackFormatError(f"{path}: unknown light config key "
+                                   f"{excerpt(prefix + str(key))}{hint}; "
+                                   f"valid: {', '.join(prefix + k for k in keys)}")
+
+
 def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
     """Read a traffic-light config YAML; see the module docstring for its keys.
 
@@ -449,8 +477,9 @@ def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
                                f"stop_line_positions[, is_site], got {type(data).__name__}")
 
     def fail(key: str, expectation: str, value: Any) -> TrackFormatError:
-        return TrackFormatError(f"{path}: {key} must be {expectation}, got {value!r}")
+        return TrackFormatError(f"{path}: {key} must be {expectation}, got {excerpt(value)}")
 
+    _refuse_unknown_keys(path, "", data, LIGHT_CONFIG_KEYS)
     if "stop_line_positions" not in data:
         raise TrackFormatError(f"{path}: missing key 'stop_line_positions' (a list of [x, y])")
     raw_stops = data["stop_line_positions"]
@@ -458,6 +487,10 @@ def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
         raw_stops = []
     if not isinstance(raw_stops, list):
         raise fail("stop_line_positions", "a list of [x, y] pairs", raw_stops)
+    if len(raw_stops) > MAX_STOP_LINES:
+        raise TrackFormatError(f"{path}: stop_line_positions must hold at most "
+                               f"{MAX_STOP_LINES:,} stop lines (the original: 8), got "
+                               f"{len(raw_stops):,}")
     for index, pair in enumerate(raw_stops):
         if (not isinstance(pair, list) or len(pair) != 2 or not all(map(_number, pair))
                 or not all(math.isfinite(value) for value in pair)):
@@ -467,13 +500,16 @@ def load_light_config(path: str | os.PathLike[str]) -> LightConfig:
     camera = data.get("camera_info")
     if not isinstance(camera, dict):
         raise fail("camera_info", "a mapping with image_width and image_height", camera)
+    _refuse_unknown_keys(path, "camera_info.", camera, CAMERA_INFO_KEYS)
     sizes: dict[str, int] = {}
     for key in ("image_width", "image_height"):
         if key not in camera:
             raise TrackFormatError(f"{path}: missing key 'camera_info.{key}' (pixels)")
         value = camera[key]
-        if not isinstance(value, int) or isinstance(value, bool) or value <= 0:
-            raise fail(f"camera_info.{key}", "a positive integer (pixels)", value)
+        if not isinstance(value, int) or isinstance(value, bool) or not (
+                0 < value <= MAX_CAMERA_PX):
+            raise fail(f"camera_info.{key}", f"an integer in [1, {MAX_CAMERA_PX}] (pixels)",
+                       value)
         sizes[key] = value
     focal: dict[str, float | None] = {}
     for key in ("focal_length_x", "focal_length_y"):

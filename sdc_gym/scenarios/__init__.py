@@ -15,9 +15,24 @@ Select one with ``gym.make(id, config={"scenario": PATH})`` or per episode with
 ``env.reset(options={"scenario": PATH_OR_MAPPING})``.
 """
 
+from typing import Any
+
 from sdc_gym.scenarios.library import LIBRARY, library_path, library_scenarios
 from sdc_gym.scenarios.model import Scenario
-from sdc_gym.validation.scenarios import check_scenario, load_scenario
+
+_CHECKS = ("check_scenario", "load_scenario")
+
+
+def __getattr__(name: str) -> Any:
+    """``check_scenario`` and ``load_scenario`` from :mod:`sdc_gym.validation.scenarios`,
+    imported on first use: that module imports :mod:`sdc_gym.scenarios.model` (and so this
+    package), and an eager import here made ``import sdc_gym.validation.scenarios`` a
+    circular ImportError when it was the first to be imported."""
+    if name in _CHECKS:
+        from sdc_gym.validation import scenarios
+
+        return getattr(scenarios, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 __all__ = ["LIBRARY", "Scenario", "check_scenario", "library_path", "library_scenarios",
            "load_scenario"]

@@ -19,6 +19,7 @@ import numpy as np
 from sdc_gym.config import ConfigError
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.scenarios.model import Scenario
+from sdc_gym.scenarios.placement_checks import check_lanes, check_placements
 from sdc_gym.scenarios.runtime import ScenarioScript, ego_path, scenario_slots
 from sdc_gym.traffic.road_events import RoadEventRates
 
@@ -43,6 +44,7 @@ def check_fits(scenario: Scenario, car_slots: int, object_slots: int, road: High
         raise ConfigError(f"{scenario.at('map')}: scenario {scenario.name!r} is for map "
                           f"{scenario.map!r}; the env has map {config_map!r} (set the "
                           "env's 'map' config key)")
+    check_lanes(scenario, road.lane_count)
     scenario_slots(scenario, car_slots, object_slots, 0.0, road.lane_count, road.lane_width,
                    road.length, 0.02)
 
@@ -67,6 +69,7 @@ def start(world: Any, env: int, rng: np.random.Generator, scenario: Scenario,
     else:
         d = float(ego.d if ego.d is not None else world.start_d)
     speed = float(ego.speed)
+    check_placements(scenario, road, s, d, world.ego_length)  # before any state changes
     if ego.x is not None:
         xy = np.array([ego.x, ego.y], dtype=np.float64)
         yaw = float(ego.yaw)  # type: ignore[arg-type]

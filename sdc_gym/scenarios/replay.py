@@ -33,12 +33,16 @@ not happen again.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Mapping
+from typing import Any, Final
 
+from sdc_gym.config import excerpt
+from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.traffic.road_events import RoadEvents
 from sdc_gym.traffic.slots import read_slot
 from sdc_gym.traffic.state import IDLE, OBJECT, PARKED
 from sdc_gym.traffic.vehicle_types import KINDS
+from sdc_gym.validation.rules import is_real
 
 NO_RECYCLE_FROM_STEPS = 2**59
 """A respawn wait at least this long is "never recycled" (a scenario's car)."""
@@ -184,15 +188,63 @@ def kind_in_snapshot(state: dict[str, Any], slot: int) -> str:
     return "unknown"
 
 
+REPORT_KEYS: Final = ("kind", "time", "replay")
+"""The keys an incident report must have to be replayed (evaluation.incident_reports
+writes them, with ``agent``, ``seed``, ``env_id``, ``env_config`` and more)."""
+SNAPSHOT_KEYS: Final = ("map", "duration", "ego", "cars", "replay")
+"""The keys of a report's ``replay`` snapshot (:func:`snapshot` writes them)."""
+REPLAY_STATE_KEYS: Final = ("traffic_step", "generator_state", "respawn_blocked_steps",
+                            "source")
+
+
+def check_incident_report(report: Any) -> None:
+    """``ValueError`` naming what is missing or wrong unless ``report`` is a whole incident
+    report with its snapshot: ``{"replay": {}}`` was a KeyError, ``{"replay": 5}`` a
+    traceback, and a report without ``kind`` or ``time`` ran a defaulted replay that
+    "passed"."""
+    if not isinstance(report, Mapping):
+        raise ValueError(f"an incident report must be a mapping, got "
+                         f"{type(report).__name__} ({excerpt(report)})")
+    if report.get("replay") is None:
+        raise ValueError("the incident report has no 'replay' snapshot (reports record one "
+                         "when the env can take it: the highway envs)")
+    missing = [key for key in REPORT_KEYS if key not in report]
+    if missing:
+        raise ValueError(f"the incident report lacks {missing} (a replay needs "
+                         f"{list(REPORT_KEYS)}; evaluate.py's incidents.json has them)")
+    if report["kind"] not in INCIDENT_KINDS:
+        raise ValueError(f"the incident report's 'kind' must be one of {list(INCIDENT_KINDS)}"
+                         f", got {excerpt(report['kind'])}")
+    if not (is_real(report["time"]) and math.isfinite(report["time"]) and report["time"] >= 0):
+        raise ValueError(f"the incident report's 'time' must be a finite number >= 0 s, got "
+                         f"{excerpt(report['time'])}")
+    state = report["replay"]
+    if not isinstance(state, Mapping):
+        raise ValueError(f"the incident report's 'replay' must be a snapshot mapping of "
+                         f"{list(SNAPSHOT_KEYS)}, got {excerpt(state)}")
+    missing = [key for key in SNAPSHOT_KEYS if key not in state]
+    if missing:
+        raise ValueError(f"the incident report's 'replay' snapshot lacks {missing} (a "
+                         f"snapshot has {list(SNAPSHOT_KEYS)})")
+    inner = state["replay"]
+    if not isinstance(inner, Mapping) or any(key not in inner for key in REPLAY_STATE_KEYS):
+        raise ValueError(f"the incident report's 'replay.replay' must be a mapping of "
+                         f"{list(REPLAY_STATE_KEYS)}, got {excerpt(inner)}")
+    source = inner["source"]
+    if not isinstance(source, Mapping) or not is_real(source.get("time")) or not (
+            0 <= source["time"] <= report["time"]):
+        raise ValueError(f"the incident report's 'replay.replay.source' must be a mapping "
+                         f"with the snapshot's 'time' (s, at most the incident's "
+                         f"{excerpt(report['time'])}), got {excerpt(source)}")
+
+
 def incident_scenario(report: dict[str, Any], after_s: float = DEFAULT_AFTER_S,
                       name: str | None = None) -> dict[str, Any]:
     """A scenario mapping that replays the incident of ``report`` (one entry of
     ``incidents.json``): from its snapshot (``report["replay"]``) until ``after_s`` s past
     the incident; it passes when the incident's kind does not happen."""
-    state = report.get("replay")
-    if not isinstance(state, dict):
-        raise ValueError("the incident report has no 'replay' snapshot (reports record one "
-                         "when the env can take it: the highway envs)")
+    check_incident_report(report)
+    state = report["replay"]
     if not math.isfinite(after_s) or after_s <= 0:
         raise ValueError(f"after_s must be > 0 s, got {after_s!r}")
     kind = report.get("kind", "collision")
@@ -217,4 +269,5 @@ def incident_scenario(report: dict[str, Any], after_s: float = DEFAULT_AFTER_S,
     return scenario
 
 
-__all__ = ["DEFAULT_AFTER_S", "IDLE", "incident_scenario", "kind_in_snapshot", "snapshot"]
+__all__ = ["DEFAULT_AFTER_S", "IDLE", "check_incident_report", "incident_scenario",
+           "kind_in_snapshot", "snapshot"]

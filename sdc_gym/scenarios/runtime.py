@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.scenarios.model import Action, Scenario
 from sdc_gym.traffic.road_events import (
     ActiveEvent,
@@ -108,7 +108,7 @@ def _car_spec(scenario: Scenario, index: int, ego_s: float, lanes: int) -> SlotS
                                                           "duration"}:
             raise ConfigError(f"{scenario.at(path + '.state.lane_change')}: scenario key "
                               f"{path + '.state.lane_change'!r} must be a mapping of target, "
-                              f"elapsed_steps and duration, got {change!r}")
+                              f"elapsed_steps and duration, got {excerpt(change)}")
         change = LaneChange(int(change["target"]), int(change["elapsed_steps"]),
                             float(change["duration"]))
     if wander is not None:

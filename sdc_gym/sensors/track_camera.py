@@ -84,12 +84,13 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from sdc_gym.config import ConfigError, resolve_config
+from sdc_gym.config import ConfigError, excerpt, resolve_config
 from sdc_gym.geometry import exact_math
 from sdc_gym.lights.traffic_lights import GREEN, RED, VALID_STATES, YELLOW
 
 # Re-exported: scenes and benchmarks place lights at the track's one housing height.
 from sdc_gym.road.track_map import LIGHT_CENTER_HEIGHT_M as LIGHT_CENTER_HEIGHT_M
+from sdc_gym.validation.bounds import MAX_CAMERA_PIXELS, MAX_CAMERA_PX
 
 # --- the seed team's / original's camera ---------------------------------------------------
 ORIGINAL_WIDTH_PX = 800
@@ -195,8 +196,14 @@ class CameraConfig:
     def __post_init__(self) -> None:
         for name in ("width", "height"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
-                raise ValueError(f"CameraConfig.{name} must be an int >= 1 px, got {value!r}")
+            if isinstance(value, bool) or not isinstance(value, int) or not (
+                    1 <= value <= MAX_CAMERA_PX):
+                raise ValueError(f"CameraConfig.{name} must be an int in [1, {MAX_CAMERA_PX}] "
+                                 f"px, got {excerpt(value)}")
+        if self.width * self.height > MAX_CAMERA_PIXELS:
+            raise ValueError(f"CameraConfig: width x height must be at most "
+                             f"{MAX_CAMERA_PIXELS:,} pixels (4K UHD: each image is a float64 "
+                             f"buffer of 24 bytes per pixel), got {self.width} x {self.height}")
         if self.cx is None:
             object.__setattr__(self, "cx", self.width / 2.0)
         if self.cy is None:

@@ -11,7 +11,7 @@ search over its candidate spots (:func:`find_spot`) and the writing of a car
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Final
 
 import numpy as np
 from numba import njit
@@ -396,6 +396,26 @@ def _settle_speeds(batch: TrafficBatch, st: TrafficState, r: int) -> None:
         b_i = (tsab_all[i] / 2.0) ** 2 / a_i
         safe = float(max_speed_for_gap(gap, v_all[j], cfg.idm, a_i, b_i))
         speed[i] = v_all[i] = min(speed[i], safe)
+
+
+RENYI_PARKING: Final = 0.7476
+"""Rényi's parking constant: cars parked one at a time at uniformly random free spots
+fill this fraction of a long lane before no spot is left (the reset's layout is such a
+random parking, with each car's exclusion its length plus ``spawn_min_gap``)."""
+
+
+def reset_capacity(batch: TrafficBatch) -> int:
+    """How many cars a reset's random layout holds on average before it jams: the lanes'
+    window (``+-(range - 10 m)`` around the ego) x Rényi's constant / the mix's mean
+    exclusion length (car length + ``spawn_min_gap``, longer on curves), less the ego.
+    Above it a reset fails almost surely, so ``car_count`` is refused at ``make``; below
+    it, near it, a reset can still jam (its error names ``car_count``)."""
+    cfg = batch.config
+    window = 2.0 * (batch.range - 10.0)
+    mean_length = math.fsum(p * length for p, length in zip(
+        batch.type_p.tolist(), TYPE_LENGTHS[:len(batch.type_p)].tolist(), strict=True))
+    exclusion = (mean_length + cfg.spawn_min_gap) / batch.geometry.min_scale
+    return max(0, int(batch.lanes * RENYI_PARKING * window / exclusion) - 1)  # - the ego
 
 
 def reset_row(batch: TrafficBatch, st: TrafficState, r: int, rng: np.random.Generator,

@@ -16,6 +16,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.config import excerpt
+
 REAL_KINDS = "iuf"  # NumPy dtype kinds of real numbers: signed, unsigned, float
 DTYPE_TEXT = "a real dtype (int or float; not bool, complex, str or object)"
 
@@ -37,12 +39,12 @@ def real_array(action: Any, shape: tuple[int | None, ...] | None, what: str = "a
     if isinstance(action, np.ndarray):
         array = action
     elif isinstance(action, str | bytes):
-        raise ValueError(f"{expected}; got the string {action!r}")
+        raise ValueError(f"{expected}; got the string {excerpt(action)}")
     else:
         try:
             array = np.asarray(action)
         except (ValueError, TypeError) as error:  # ragged lists and other non-arrays
-            raise ValueError(f"{expected}; got {action!r} ({error})") from None
+            raise ValueError(f"{expected}; got {excerpt(action)} ({error})") from None
     if array.dtype.kind not in REAL_KINDS:
         raise ValueError(f"{expected}; got dtype {array.dtype} with shape {array.shape}")
     if shape is not None and (len(array.shape) != len(shape) or any(
@@ -62,7 +64,8 @@ def discrete_index(action: Any, count: int, names: tuple[str, ...] | list[str] =
     valid = f"0..{count - 1}" + (f" = {list(names)}" if names else "")
     if isinstance(value, bool | np.bool_) or not isinstance(value, int | np.integer):
         raise ValueError(f"a Discrete({count}) action is an int in {valid} (a Python or "
-                         f"NumPy int, or an int array of shape () or (1,)); got {action!r}")
+                         "NumPy int, or an int array of shape () or (1,)); got "
+                         f"{excerpt(action)}")
     if not 0 <= value < count:
         raise ValueError(f"action {value} out of range; valid: {valid}")
     return int(value)

@@ -18,6 +18,7 @@ from sdc_gym.config import ConfigError
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.validation.bounds import (
     MAX_CAR_COUNT,
+    MAX_DECISION_PERIOD_S,
     MAX_DURATION_S,
     MAX_LAPS,
     MAX_OBSTACLES,
@@ -200,11 +201,22 @@ def check_highway_config(config: Mapping[str, Any], owner: str) -> None:
             "a path takes effect within the episode")), latency, owner, "latency_steps")
 
 
-def check_highway_start(config: Mapping[str, Any], road_width: float, owner: str) -> None:
-    """A configured start lies on the loaded map's road: d in [0, lanes x lane width]."""
+def check_highway_start(config: Mapping[str, Any], road_width: float, owner: str,
+                        loop_length: float) -> None:
+    """A configured start lies on the loaded map's road: d in [0, lanes x lane width], s
+    in [0, loop length)."""
     check_value(Number(0.0, road_width, optional=True, unit="m right of the centre line, on "
                        f"the map's {road_width:g} m of road"), config["start_d"], owner,
                 "start_d")
+    check_start_s(config["start_s"], loop_length, owner)
+
+
+def check_start_s(start_s: Any, loop_length: float, owner: str) -> None:
+    """``start_s`` within one lap, [0, loop length): ``1e300`` wrapped around the loop
+    silently (to wherever float rounding put it)."""
+    check_value(Number(0.0, loop_length, high_open=True, optional=True,
+                       unit=f"m along the {loop_length:,.1f} m loop"), start_s, owner,
+                "start_s")
 
 
 BEHAVIOR_RULES: Final[dict[str, Rule]] = {
@@ -264,5 +276,11 @@ def check_track_behavior_config(config: Mapping[str, Any], owner: str) -> None:
     if isinstance(track, Mapping) and "steps_per_action" in track:
         check_value(step_frames_rule(track.get("max_duration", 1200.0)),
                     track["steps_per_action"], owner, "track.steps_per_action")
-    check_value(Number(0.0, MAX_DURATION_S, low_open=True, unit="s"),
+    max_duration = track.get("max_duration", 1200.0) if isinstance(track, Mapping) else None
+    episode = (max_duration if isinstance(max_duration, int | float) and math.isfinite(
+        max_duration) and max_duration > 0 else MAX_DECISION_PERIOD_S)
+    check_value(Number(0.0, min(episode, MAX_DECISION_PERIOD_S), low_open=True, unit="s",
+                       why=f"a decision lasts at most the episode's max_duration "
+                           f"({max_duration!r} s) and at most {MAX_DECISION_PERIOD_S:g} s "
+                           "(its per-frame buffers)"),
                 config["decision_period_s"], owner, "decision_period_s")

@@ -137,7 +137,14 @@ def _crossing(points: NDArray[np.float64], closed: bool = True) -> tuple[int, in
         return (q[:, 0] - p[:, 0]) * (r[:, 1] - p[:, 1]) - (q[:, 1] - p[:, 1]) * (
             r[:, 0] - p[:, 0])
 
-    crosses = (side(a, b, c) * side(a, b, d) < 0) & (side(c, d, a) * side(c, d, b) < 0)
+    # Each side's sign, 0 within rounding: a crossing exactly at a sample (the first
+    # waypoint of a figure eight) has a side of +-1e-10 whose random sign hid it; touching
+    # counts as crossing, exactly collinear segments (a straight) do not.
+    tolerance = 1e-9 * reach * reach
+    signs = [np.where(np.abs(value) <= tolerance, 0.0, np.sign(value)) for value in (
+        side(a, b, c), side(a, b, d), side(c, d, a), side(c, d, b))]
+    collinear = (signs[0] == 0) & (signs[1] == 0) & (signs[2] == 0) & (signs[3] == 0)
+    crosses = (signs[0] * signs[1] <= 0) & (signs[2] * signs[3] <= 0) & ~collinear
     if not crosses.any():
         return None
     first = int(np.flatnonzero(crosses)[0])

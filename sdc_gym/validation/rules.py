@@ -31,7 +31,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 
 
 def is_real(value: Any) -> bool:
@@ -173,7 +173,7 @@ def lookup(config: Mapping[str, Any], path: str) -> tuple[bool, Any]:
 
 def fail(owner: str, key: str, expectation: str, value: Any) -> ConfigError:
     """The one format of a bad value: owner, key, what it must be, what it is."""
-    return ConfigError(f"{owner}: config key {key!r} must be {expectation}, got {value!r}")
+    return ConfigError(f"{owner}: config key {key!r} must be {expectation}, got {excerpt(value)}")
 
 
 def check_value(rule: Rule, value: Any, owner: str, key: str) -> None:

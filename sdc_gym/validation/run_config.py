@@ -20,7 +20,7 @@ import typing
 from collections.abc import Mapping
 from typing import Any, Final
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.validation.rules import Choice, Number, Rule, check_finite, check_value, is_real
 
 ALGORITHMS: Final = ("ppo", "dqn", "sac", "a2c")
@@ -67,14 +67,14 @@ def check_run_config(config: Mapping[str, Any], owner: str, registered: Any) -> 
     env_id = config.get("env")
     if not isinstance(env_id, str) or not registered(env_id):
         raise ConfigError(f"{owner}: config key 'env' must be a registered env id (e.g. "
-                          f"sdc_gym/HighwayLoopBehavior-v0), got {env_id!r}")
+                          f"sdc_gym/HighwayLoopBehavior-v0), got {excerpt(env_id)}")
     if not isinstance(config.get("config"), Mapping):
         raise ConfigError(f"{owner}: config key 'config' must be a mapping of {env_id} "
-                          f"config keys, got {config.get('config')!r}")
+                          f"config keys, got {excerpt(config.get('config'))}")
     evaluation = config.get("eval")
     if not isinstance(evaluation, Mapping) or set(evaluation) - set(EVAL_DEFAULTS):
         raise ConfigError(f"{owner}: config key 'eval' must be a mapping with keys of "
-                          f"{sorted(EVAL_DEFAULTS)}, got {evaluation!r}")
+                          f"{sorted(EVAL_DEFAULTS)}, got {excerpt(evaluation)}")
     for key, rule in RUN_RULES.items():
         node: Any = config
         for part in key.split("."):
@@ -146,7 +146,89 @@ def check_hyperparams(algorithm: type, hyperparams: Mapping[str, Any], owner: st
         hint = _hint(algorithm, key)
         if not matches(value, hint):
             raise ConfigError(f"{owner}: hyperparameter {key!r} of {algorithm.__name__} must "
-                              f"be {_describe(hint)}, got {value!r} ({type(value).__name__})")
+                              f"be {_describe(hint)}, got {excerpt(value)} "
+                              f"({type(value).__name__})")
         if key in HYPERPARAM_RULES and is_real(value):
             check_value(HYPERPARAM_RULES[key], value, owner, key)
     check_finite(dict(hyperparams), owner)
+    if "policy_kwargs" in hyperparams and hyperparams["policy_kwargs"] is not None:
+        check_policy_kwargs(hyperparams["policy_kwargs"], owner)
+
+
+ACTIVATIONS: Final = {"relu": "ReLU", "tanh": "Tanh", "elu": "ELU", "leaky_relu": "LeakyReLU",
+                      "selu": "SELU", "silu": "SiLU", "gelu": "GELU", "sigmoid": "Sigmoid"}
+"""``policy_kwargs.activation_fn`` by name (``relu``, ``ReLU``, ``nn.ReLU`` or
+``torch.nn.ReLU``: YAML gives a string, SB3 wants the ``torch.nn`` class)."""
+MAX_LAYER_WIDTH: Final = 4_096
+MAX_LAYERS: Final = 16
+NET_ARCH_HEADS: Final = ("pi", "vf", "qf")
+
+
+def activation_name(value: Any) -> str | None:
+    """The ``torch.nn`` class name ``value`` names (see :data:`ACTIVATIONS`), or None."""
+    if not isinstance(value, str):
+        return None
+    name = value.removeprefix("torch.").removeprefix("nn.")
+    by_class = {cls.lower(): cls for cls in ACTIVATIONS.values()}
+    return ACTIVATIONS.get(name.lower()) or by_class.get(name.lower())
+
+
+def _layers_problem(value: Any) -> bool:
+    return not (isinstance(value, list) and len(value) <= MAX_LAYERS and all(
+        isinstance(width, int) and not isinstance(width, bool)
+        and 1 <= width <= MAX_LAYER_WIDTH for width in value))
+
+
+def check_policy_kwargs(policy_kwargs: Any, owner: str) -> None:
+    """``activation_fn`` a name of :data:`ACTIVATIONS`; ``net_arch`` a list of at most
+    :data:`MAX_LAYERS` layer widths in [1, :data:`MAX_LAYER_WIDTH`] (``[0]`` trained a
+    zero-width layer) or a mapping of ``pi``/``vf``/``qf`` to such lists."""
+    if not isinstance(policy_kwargs, Mapping):
+        raise ConfigError(f"{owner}: hyperparameter 'policy_kwargs' must be a mapping, got "
+                          f"{excerpt(policy_kwargs)}")
+    if "activation_fn" in policy_kwargs and activation_name(
+            policy_kwargs["activation_fn"]) is None:
+        raise ConfigError(f"{owner}: hyperparameter 'policy_kwargs.activation_fn' must be one "
+                          f"of {sorted(ACTIVATIONS)} (or the torch.nn class name, e.g. "
+                          f"'torch.nn.ReLU'), got {excerpt(policy_kwargs['activation_fn'])}")
+    if "net_arch" in policy_kwargs:
+        arch = policy_kwargs["net_arch"]
+        bad = (any(key not in NET_ARCH_HEADS or _layers_problem(layers)
+                   for key, layers in arch.items()) if isinstance(arch, Mapping)
+               else _layers_problem(arch))
+        if bad:
+            raise ConfigError(f"{owner}: hyperparameter 'policy_kwargs.net_arch' must be a "
+                              f"list of at most {MAX_LAYERS} layer widths, each an int in "
+                              f"[1, {MAX_LAYER_WIDTH}], or a mapping of {list(NET_ARCH_HEADS)}"
+                              f" to such lists, got {excerpt(arch)}")
+
+
+def resolved_policy_kwargs(hyperparams: Mapping[str, Any]) -> dict[str, Any]:
+    """``hyperparams`` (checked) with ``policy_kwargs.activation_fn`` the ``torch.nn``
+    class it names, as SB3 takes it (the run's config.yaml keeps the name)."""
+    out = dict(hyperparams)
+    kwargs = out.get("policy_kwargs")
+    if isinstance(kwargs, Mapping) and "activation_fn" in kwargs:
+        from torch import nn
+
+        out["policy_kwargs"] = {**kwargs, "activation_fn": getattr(
+            nn, activation_name(kwargs["activation_fn"]) or "")}
+    return out
+
+
+ACTION_SPACES: Final = {"ppo": ("Box", "Discrete", "MultiDiscrete", "MultiBinary"),
+                        "a2c": ("Box", "Discrete", "MultiDiscrete", "MultiBinary"),
+                        "dqn": ("Discrete",), "sac": ("Box",)}
+"""The action spaces each algorithm learns (stable-baselines3's and RLlib's alike)."""
+
+
+def check_algorithm_space(algo: str, action_space: Any, env_id: str, owner: str) -> None:
+    """``algo`` can learn ``env_id``'s ``action_space`` (``sac`` on a Discrete env raised
+    SB3's AssertionError after the envs had started)."""
+    kinds = ACTION_SPACES.get(algo)
+    kind = type(action_space).__name__
+    if kinds is not None and kind not in kinds:
+        fits = [name for name, spaces in ACTION_SPACES.items() if kind in spaces]
+        raise ConfigError(f"{owner}: algo {algo!r} learns {' or '.join(kinds)} actions; "
+                          f"{env_id} has {kind} actions ({action_space}): use one of {fits}"
+                          " (the behavior envs take config action: discrete or continuous)")

@@ -2,7 +2,7 @@
 :class:`~sdc_gym.scenarios.model.Scenario`.
 
 Every error names the file and line (from YAML's node tree,
-:func:`~sdc_gym.validation.text_files.parse_yaml_lines`), the key path, what the value
+:func:`~sdc_gym.validation.yaml_files.parse_yaml_lines`), the key path, what the value
 must be and what it is::
 
     scenarios/stalled.yaml:14: scenario key 'cars[1].speed' must be a finite number in
@@ -22,7 +22,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, Final
 
-from sdc_gym.config import ConfigError
+from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.scenarios.model import (
     ACTIONS,
@@ -91,7 +91,7 @@ class _Checker:
 
     def fail(self, path: str, expectation: str, value: Any) -> ConfigError:
         return ConfigError(f"{self.where(path)}: scenario key {path!r} must be "
-                           f"{expectation}, got {value!r}")
+                           f"{expectation}, got {excerpt(value)}")
 
     def mapping(self, value: Any, path: str, allowed: Sequence[str],
                 required: Sequence[str] = ()) -> Mapping[str, Any]:
@@ -228,7 +228,7 @@ def check_scenario(data: Any, source: str = "<mapping>",
 def load_scenario(scenario: str | os.PathLike[str] | Mapping[str, Any] | Scenario
                   ) -> Scenario:
     """A scenario from a file path, a mapping or an already checked :class:`Scenario`."""
-    from sdc_gym.validation.text_files import read_yaml_lines
+    from sdc_gym.validation.yaml_files import read_yaml_lines
 
     if isinstance(scenario, Scenario):
         return scenario
@@ -238,7 +238,7 @@ def load_scenario(scenario: str | os.PathLike[str] | Mapping[str, Any] | Scenari
         data, lines = read_yaml_lines(scenario, "scenario file", ConfigError)
         return check_scenario(data, str(scenario), lines)
     raise ConfigError(f"a scenario must be a file path, a mapping or a Scenario, got "
-                      f"{type(scenario).__name__} ({scenario!r})")
+                      f"{type(scenario).__name__} ({excerpt(scenario)})")
 
 
 def _ego(check: _Checker, value: Any) -> EgoStart:
