@@ -5,6 +5,7 @@ episode with its reason, in bounded time, leaving no process behind."""
 from __future__ import annotations
 
 import json
+import os
 import shlex
 import socket
 import subprocess
@@ -156,17 +157,30 @@ def test_a_planner_that_crashes_at_start_is_reported_with_its_output(tmp_path):
 
 
 def test_a_missing_command_and_a_busy_port_are_named(tmp_path):
-    result = run("external:./path_planning", OVAL, cwd=str(tmp_path))
-    assert result["termination_reason"] == "planner_not_found"
-    assert "./path_planning" in result["abort_message"] and str(tmp_path) in result[
-        "abort_message"]
+    """A missing command is ``planner_not_found`` whatever the port's state: checked before
+    the port, so also while another program holds it (the port is held here, never assumed
+    free). Only a runnable planner meets a busy port: ``port_in_use``, naming the holder."""
     with socket.socket() as other:  # another program already on the planner's port
         other.bind(("127.0.0.1", 0))
         other.listen()
         port = other.getsockname()[1]
+        for options in ({"port": port}, {}):  # the held port, and the default (4567)
+            result = run("external:./path_planning", OVAL, cwd=str(tmp_path), **options)
+            assert result["termination_reason"] == "planner_not_found"
+            assert "./path_planning" in result["abort_message"]
+            assert f"no such file: {tmp_path / 'path_planning'}" in result["abort_message"]
+        script = tmp_path / "not_executable.sh"
+        script.write_text("#!/bin/sh\n")
+        result = run("external:./not_executable.sh", OVAL, cwd=str(tmp_path), port=port)
+        assert result["termination_reason"] == "planner_not_found"
+        assert "is not executable (chmod +x ./not_executable.sh)" in result["abort_message"]
+        result = run("external:no-such-planner-xyz --port {port}", OVAL, cwd=str(tmp_path))
+        assert result["termination_reason"] == "planner_not_found"
+        assert "no program 'no-such-planner-xyz' on PATH" in result["abort_message"]
         result = run(external(*STRAIGHT), OVAL, port=port)
     assert result["termination_reason"] == "port_in_use"
     assert f"port {port} is already in use" in result["abort_message"]
+    assert f"by pid {os.getpid()} (" in result["abort_message"]  # this test holds it
     assert {"planner_not_found", "port_in_use", "reply_timeout"} <= set(FAULT_REASONS)
 
 
