@@ -231,8 +231,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.ray is not None and not args.ray.strip():
         parser.error("--ray ADDRESS must be 'auto' or HOST:PORT (or no ADDRESS: a local "
                      "cluster), got an empty string")
-    if args.agents is not None:
-        args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
         episodes = args.episodes or (1 if args.endurance or args.scenario else
                                      DEFAULT_EPISODES)
@@ -311,16 +309,24 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
     return env_id, env_config
 
 
+def agent_options(args: argparse.Namespace, run: external.AgentRun,
+                  seed: int) -> dict[str, dict[str, Any]]:
+    """The options of one episode's agent (an external planner's folder, port, log)."""
+    if not external.is_external(run.spec):
+        return {}
+    return {external.EXTERNAL_KIND: external.external_options(args, run, seed)}
+
+
 def episode_specs(args: argparse.Namespace, env_id: str,
                   env_config: dict[str, Any]) -> list[EpisodeSpec]:
     """One episode per (agent, seed), with the incident and external planner options."""
-    return [EpisodeSpec(agent, env_id, seed, (external.external_env_config(env_config)
-                                              if external.is_external(agent) else env_config),
-                        agent_options=({external.EXTERNAL_KIND: external.external_options(
-                            args, agent, seed)} if external.is_external(agent) else {}),
+    return [EpisodeSpec(run.spec, env_id, seed, (external.external_env_config(env_config)
+                                                 if external.is_external(run.spec)
+                                                 else env_config),
+                        agent_options=agent_options(args, run, seed),
                         incident_history=args.incident_history,
-                        stop_at_incident=args.stop_at_incident)
-            for agent in args.agents for seed in args.seeds]
+                        stop_at_incident=args.stop_at_incident, name=run.name)
+            for run in args.agent_runs for seed in args.seeds]
 
 
 @dataclass(frozen=True)
@@ -375,15 +381,19 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     env_id, env_config = env_settings(args)
     if args.agents is None:
         args.agents = list(DEFAULT_TRACK_AGENTS if env_id in TRACK_ENVS else DEFAULT_AGENTS)
+    # Each agent under its name (an external planner repeated per folder: SPEC@FOLDER).
+    args.agent_runs = external.agent_runs(args.agents, args.planner_cwd)
+    specs_given = args.agents
+    args.agents = [run.name for run in args.agent_runs]
     try:
         probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
-    workers = external.fixed_port_workers(args, args.agents, args.workers or os.cpu_count()
+    workers = external.fixed_port_workers(args, specs_given, args.workers or os.cpu_count()
                                           or 1)
     backend = None
     if args.ray is not None:
-        if external.fixed_port_workers(args, args.agents, 2) == 1:
+        if external.fixed_port_workers(args, specs_given, 2) == 1:
             raise SystemExit("--ray runs episodes in parallel, and external planners on a "
                              "fixed port would collide: put {port} in the command")
         backend = ray_backend(args.ray, args.workers)
@@ -398,7 +408,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 
     started = time.perf_counter()
     try:
-        with external.planner_maps(args, probe.road):
+        with external.planner_maps(args, args.agent_runs, probe.road):
             runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
                                 backend=backend)
     except ConnectionError as error:  # --ray ADDRESS with no cluster there
@@ -475,9 +485,12 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
                   backend: Any) -> dict[str, Any]:
     """``--scenario``: every agent on each scenario; the verdicts printed and written."""
     started = time.perf_counter()
-    rows, episodes, failures = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
-                                             env_config, workers, not args.no_progress,
-                                             backend)
+    runs = {run.name: run for run in args.agent_runs}
+    rows, episodes, failures = run_scenarios(
+        args.scenario, args.agents, args.seeds, env_id, env_config, workers,
+        not args.no_progress, backend,
+        agent_setup=lambda name, seed: (runs[name].spec,
+                                        agent_options(args, runs[name], seed)))
     wall = time.perf_counter() - started
     run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
            "seeds": args.seeds, "scenario": str(args.scenario),

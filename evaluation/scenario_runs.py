@@ -13,6 +13,7 @@ episode's summary and incident log).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -96,13 +97,25 @@ def _replay_cases(path: Path) -> list[ScenarioCase]:
     return cases
 
 
+AgentSetup = Callable[[str, int], tuple[str, dict[str, dict[str, Any]]]]
+"""``setup(name, seed) -> (spec, agent_options)``: how the agent ``name`` is built for the
+episode of ``seed`` (an external planner's folder and log); default: the name is the spec."""
+
+
 def scenario_specs(cases: list[ScenarioCase], agents: list[str], seeds: list[int],
-                   env_id: str, env_config: dict[str, Any]) -> list[EpisodeSpec]:
+                   env_id: str, env_config: dict[str, Any],
+                   agent_setup: AgentSetup | None = None) -> list[EpisodeSpec]:
     """One episode per (scenario, agent, seed); no incident reports, no stop."""
-    return [EpisodeSpec(agent, env_id, seed,
-                        {**env_config, **case.env_config, "scenario": case.scenario},
-                        incident_history=0.0)
-            for case in cases for agent in agents for seed in seeds]
+    specs = []
+    for case in cases:
+        for agent in agents:
+            for seed in seeds:
+                spec, options = agent_setup(agent, seed) if agent_setup else (agent, {})
+                specs.append(EpisodeSpec(
+                    spec, env_id, seed,
+                    {**env_config, **case.env_config, "scenario": case.scenario},
+                    agent_options=options, incident_history=0.0, name=agent))
+    return specs
 
 
 def verdict_rows(cases: list[ScenarioCase], episodes: list[dict[str, Any]], agents: list[str],
@@ -150,12 +163,13 @@ def verdict_table(rows: list[dict[str, Any]], title: str) -> TableData:
 
 def run_scenarios(path: Path, agents: list[str], seeds: list[int], env_id: str,
                   env_config: dict[str, Any], workers: int, progress: bool,
-                  backend: EpisodeBackend | None = None
+                  backend: EpisodeBackend | None = None, agent_setup: AgentSetup | None = None
                   ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[EpisodeFailure]]:
     """Run every agent on every scenario of ``path`` (worker processes, or ``backend``:
-    Ray); the verdict rows, the episodes and the failures."""
+    Ray); the verdict rows, the episodes and the failures. ``agents`` are names, built
+    by ``agent_setup`` (default: each name is its spec)."""
     cases = scenario_cases(path)
-    specs = scenario_specs(cases, agents, seeds, env_id, env_config)
+    specs = scenario_specs(cases, agents, seeds, env_id, env_config, agent_setup)
     runs = run_episodes(specs, workers=workers, progress=progress, backend=backend)
     return (verdict_rows(cases, runs.results, agents, seeds, runs.failures), runs.results,
             runs.failures)
