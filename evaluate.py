@@ -444,7 +444,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     terminal_output(console, analysis, title, args.wide)
     if args.endurance:
         console.print(endurance_table(episodes, f"endurance: {laps} laps, incidents counted, "
-                                                "driving on", analysis.labels).rich())
+                                                "driving on", analysis.labels
+                                       ).rich(console.width))
         best = max(episode["longest_distance_without_incident"] for episode in episodes)
         console.print(f"best distance without incident: {best / METERS_PER_MILE:.2f} miles "
                       f"(seed planner's record: {SEED_RECORD_MILES:.2f} miles)")
@@ -490,7 +491,8 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
         args.scenario, args.agents, args.seeds, env_id, env_config, workers,
         not args.no_progress, backend,
         agent_setup=lambda name, seed: (runs[name].spec,
-                                        agent_options(args, runs[name], seed)))
+                                        agent_options(args, runs[name], seed)),
+        incident_history=args.incident_history)
     wall = time.perf_counter() - started
     run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
            "seeds": args.seeds, "scenario": str(args.scenario),
@@ -501,7 +503,8 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
         run_folders.point_latest_at(args.output)
     console = Console()
     passed = sum(row["passed"] for row in rows)
-    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}").rich())
+    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}"
+                                ).rich(console.width))
     console.print(f"{passed} of {len(rows)} passed; {len(rows)} episode(s) in {wall:.1f} s "
                   f"wall time; results in {args.output}: "
                   + ", ".join(path.name for path in files), markup=False, highlight=False)

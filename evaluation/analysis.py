@@ -16,7 +16,7 @@ from rich.console import Console
 
 from evaluation import statistics, tables
 from evaluation.summary import AgentSamples, agent_samples, aggregate
-from evaluation.verdicts import Comparison, compare_all
+from evaluation.verdicts import Comparison, compare_all, power_note
 
 
 @dataclass(frozen=True)
@@ -70,11 +70,10 @@ def terminal_output(console: Console, analysis: Analysis, title: str,
                     wide: bool = False) -> None:
     """Print the tables and the verdicts."""
     for table in analysis.tables(title, wide):
-        console.print(table.rich())
+        console.print(table.rich(console.width))
     lines = tables.verdict_lines(analysis.comparisons)
     if lines:
-        console.print(tables.wrap_verdict(tables.VERDICT_HEADING, console.width),
-                      markup=False, highlight=False)
-    for line in lines:
+        lines = [tables.VERDICT_HEADING, *lines, power_note(analysis.comparisons)]
+    for line in filter(None, lines):  # wrapped at spaces here: rich must not split a name
         console.print(tables.wrap_verdict(line, console.width), markup=False,
-                      highlight=False)
+                      highlight=False, soft_wrap=True)

@@ -52,8 +52,8 @@ def write_run(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
                                   {**run, "statistics": analysis.settings.as_dict()})
     if files.write_traces(output / files.TRACES_FILE, episodes):
         written.append(output / files.TRACES_FILE)
-    if files.write_incident_reports(output / files.INCIDENTS_FILE, episodes):
-        written.append(output / files.INCIDENTS_FILE)
+    files.write_incident_reports(output / files.INCIDENTS_FILE, episodes)  # [] without any
+    written.append(output / files.INCIDENTS_FILE)
     report = Report(title=f"sdc-gym evaluation: {output.resolve().name}", settings=settings,
                     tables=analysis.tables(title),
                     verdicts=verdict_lines(analysis.comparisons))

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.stats
 from rliable import metrics as rliable_metrics
 
 from evaluation import statistics
@@ -51,16 +52,24 @@ def test_the_vectorized_improvement_statistic_is_rliables():
             x[:, None], y[:, None]))
 
 
-def test_bootstrap_intervals_cover_the_mean_are_seeded_and_narrow_with_more_seeds():
+def test_mean_intervals_are_students_t_and_narrow_with_more_seeds():
+    # [1, 2, 3]: mean 2, s = 1, t(2; 0.975) = 4.302653 (the tables): 2 +- 4.302653 / sqrt 3.
+    three = mean_interval([1.0, 2.0, 3.0], "x")
+    assert (three.value, three.low, three.high) == pytest.approx((2.0, -0.484138, 4.484138))
+    # 90 %: t(2; 0.95) = 2.919986.
+    ninety = mean_interval([1.0, 2.0, 3.0], "x", Settings(confidence=0.9))
+    assert ninety.high == pytest.approx(2.0 + 2.919986 / np.sqrt(3.0))
     rng = np.random.default_rng(0)
     few, many = rng.normal(46.0, 1.0, 5), rng.normal(46.0, 1.0, 80)
     a, b = mean_interval(few, "mph", FAST), mean_interval(many, "mph", FAST)
     assert a.low < a.value < a.high and b.low < b.value < b.high
     assert b.high - b.low < a.high - a.low
-    # The normal approximation's 95 % half-width is 1.96 sigma / sqrt(n): about 0.22.
-    assert (b.high - b.low) / 2 == pytest.approx(1.96 * np.std(many) / np.sqrt(80), rel=0.15)
-    assert mean_interval(many, "mph", FAST) == b  # seeded: the same interval again
-    assert mean_interval(many, "mph", Settings(resamples=2000, seed=1)) != b
+    # t(79; 0.975) = 1.990450: the half-width is t s / sqrt(n).
+    assert (b.high - b.low) / 2 == pytest.approx(1.990450 * np.std(many, ddof=1) / np.sqrt(80))
+    # The old percentile bootstrap stays within the sample's range: at 3 seeds it is
+    # about the min-max, the t interval far wider (the coverage test shows which is honest).
+    boot = statistics.bootstrap_mean_interval([1.0, 2.0, 3.0], "x", FAST)
+    assert 1.0 <= boot.low < boot.high <= 3.0
     # A constant sample has an exact interval; one value has none; nothing, no value.
     assert mean_interval([5.0, 5.0, 5.0], "x") == statistics.Interval(5.0, 5.0, 5.0)
     assert mean_interval([5.0], "x") == statistics.Interval(5.0, None, None)
@@ -79,8 +88,37 @@ def test_pairing_by_seed_removes_the_shared_spread():
     assert paired.value == pytest.approx(independent.value)
     assert paired.low > 0.8 and paired.high < 1.2  # a clear 1 mph
     assert independent.low < 0.0 < independent.high  # lost in the seeds' spread
+    # Known answers: paired, the t interval of the differences [0, 0, -0.5];
+    d = mean_difference([1.0, 2.0, 3.0], [1.0, 2.0, 3.5], "x", True)
+    s = np.std([0.0, 0.0, -0.5], ddof=1)
+    assert (d.low, d.high) == pytest.approx((-1 / 6 - 4.302653 * s / np.sqrt(3),
+                                             -1 / 6 + 4.302653 * s / np.sqrt(3)))
+    # independent, Welch's: variances 1 and 7/3 over 3 each, Welch-Satterthwaite's df.
+    w = mean_difference([1.0, 2.0, 3.0], [4.0, 5.0, 7.0], "x", False)
+    se2 = 1.0 / 3 + (7.0 / 3) / 3
+    df = se2**2 / ((1.0 / 3) ** 2 / 2 + ((7.0 / 3) / 3) ** 2 / 2)
+    half = scipy.stats.t.ppf(0.975, df) * np.sqrt(se2)
+    assert df == pytest.approx(3.4, abs=0.05)
+    assert (w.value, w.low, w.high) == pytest.approx((-10 / 3, -10 / 3 - half, -10 / 3 + half))
+    assert mean_difference([5.0, 6.0], [5.0, 6.0], "x", True) == statistics.Interval(0, 0, 0)
+    assert mean_difference([5.0], [4.0], "x", False) == statistics.Interval(1.0)
     with pytest.raises(ValueError, match="equal lengths"):
         mean_difference([1.0, 2.0], [1.0], "x", True)
+
+
+def test_seeds_needed_matches_cohens_power_tables():
+    """Cohen (1988), table 2.4.1: the two-sample t test at alpha 0.05 (two-sided) needs 64
+    per group for d = 0.5 at power 0.80, 26 for d = 0.8; the paired (one-sample) test
+    needs n = 34 for d = 0.5 (33.4 rounded up)."""
+    assert statistics.seeds_needed(0.5, 1.0, paired=False) == 64
+    assert statistics.seeds_needed(0.8, 1.0, paired=False) == 26
+    assert statistics.seeds_needed(0.5, 1.0) == 34
+    assert statistics.seeds_needed(1.0, 2.0) == 34  # only the ratio counts
+    assert statistics.seeds_needed(-0.5, 1.0) == 34  # either sign
+    assert statistics.seeds_needed(0.0, 1.0) is None  # nothing to find
+    assert statistics.seeds_needed(1e-6, 1.0) is None  # beyond MAX_SEEDS
+    assert statistics.seeds_needed(1.0, 0.0) == 2  # no spread at all
+    assert statistics.seeds_needed(10.0, 1.0) == 3  # at n = 2 the t test has 1 df
 
 
 def test_garwood_interval_against_tabulated_values():
