@@ -33,6 +33,12 @@ class Analysis:
     def labels(self) -> dict[str, str]:
         return {sample.agent: sample.label for sample in self.samples}
 
+    def verdicts(self) -> list[str]:
+        """One line per comparison, then the power note (the seeds 0.5 mph needs)."""
+        lines = tables.verdict_lines(self.comparisons)
+        note = power_note(self.comparisons)
+        return [*lines, note] if lines and note else lines
+
     def tables(self, title: str, wide: bool = False) -> list[tables.TableData]:
         """The key table, then incidents by kind (when any) and the track's table; or
         the one wide table."""
@@ -71,9 +77,8 @@ def terminal_output(console: Console, analysis: Analysis, title: str,
     """Print the tables and the verdicts."""
     for table in analysis.tables(title, wide):
         console.print(table.rich(console.width))
-    lines = tables.verdict_lines(analysis.comparisons)
-    if lines:
-        lines = [tables.VERDICT_HEADING, *lines, power_note(analysis.comparisons)]
-    for line in filter(None, lines):  # wrapped at spaces here: rich must not split a name
+    lines = analysis.verdicts()
+    for line in [tables.VERDICT_HEADING, *lines] if lines else []:
+        # Wrapped at spaces here: rich must not split a name.
         console.print(tables.wrap_verdict(line, console.width), markup=False,
                       highlight=False, soft_wrap=True)

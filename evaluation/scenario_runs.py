@@ -18,7 +18,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.episodes import EpisodeSpec
+from evaluation.episodes import REPORTS_KEY, EpisodeSpec
 from evaluation.files import (
     INCIDENTS_FILE,
     atomic_write_text,
@@ -200,5 +200,7 @@ def write_scenario_run(folder: Path, rows: list[dict[str, Any]],
              if key not in ("trace", "incident_reports")} for episode in episodes]
     atomic_write_text(json_path, json.dumps({"run": run, "rows": rows, "episodes": keep},
                                             indent=1, default=str) + "\n")
+    if not any(REPORTS_KEY in episode for episode in episodes):  # --incident-history 0
+        return [csv_path, json_path]
     write_incident_reports(folder / INCIDENTS_FILE, episodes)
     return [csv_path, json_path, folder / INCIDENTS_FILE]

@@ -55,7 +55,8 @@ def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path, capsys):
     for line, returns in zip(lines, evaluations["results"], strict=True):
         assert int(line[1]) == len(returns)
         assert float(line[2]) == pytest.approx(np.mean(returns), abs=0.006)
-        assert 0.0 < float(line[3]) < 80.0 and float(line[4]) >= 0.0
+        assert 0.0 <= float(line[3]) < 80.0 and float(line[4]) >= 0.0  # (an untrained
+        # policy may keep the car standing: 0.00 mph)
     assert "Eval num_timesteps=256, episode_reward=" in out  # SB3's own line
     # Interrupted after the first checkpoint: only it survives.
     checkpoints[1].unlink()
