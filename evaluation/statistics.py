@@ -265,14 +265,21 @@ def seeds_needed(difference: float, spread: float, paired: bool = True,
     effect = difference / spread
     solver = TTestPower() if paired else TTestIndPower()
     alpha = 1.0 - confidence
-    # Power grows with the seeds: bisect on whole seeds (statsmodels' solve_power, a root
-    # finder on a real n, fails to converge for large effects at n near 2).
-    low, high = 1, MAX_SEEDS  # power(low) < power <= power(high)
-    if solver.power(effect, high, alpha) < power:
-        return None
+    # Power grows with the seeds: double, then bisect on whole seeds (statsmodels'
+    # solve_power, a root finder on a real n, fails to converge for large effects near
+    # n = 2, and its noncentral t gives NaN for small effects at tens of thousands).
+    def reached(seeds: int) -> bool:
+        value = solver.power(effect, seeds, alpha)
+        return bool(np.isfinite(value) and value >= power)
+
+    low, high = 1, 2  # not reached at low (1 seed has no spread), reached at high
+    while not reached(high):
+        if high >= MAX_SEEDS:
+            return None
+        low, high = high, min(2 * high, MAX_SEEDS)
     while high - low > 1:
         middle = (low + high) // 2
-        if solver.power(effect, middle, alpha) >= power:
+        if reached(middle):
             high = middle
         else:
             low = middle
