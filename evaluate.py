@@ -15,9 +15,11 @@
     python evaluate.py --scenario results/latest/incidents.json  # replay every incident
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
-each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
-incidents by kind when there are any, and one verdict per agent pair ("A faster than B
-by D mph [low, high], P(improvement) p"; "no clear difference" when the interval spans 0).
+each with its 95 % interval (Student's t over seeds, marked when under 5 seeds are too few
+to decide; Garwood's exact interval for counts), incidents by kind when there are any, and
+one verdict per agent pair ("A faster than B by D mph [low, high], P(improvement) p";
+"no clear difference" when the interval spans 0, with the seeds that difference would need
+at 80 % power), then the seeds 0.5 mph needs at the spread measured.
 ``--wide`` prints every column in one table instead.
 
 Each run gets a new folder results/<date>_<time> (results/latest links to the newest);
@@ -251,7 +253,8 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
                              "of the 80-column tables")
     parser.add_argument("--bootstrap-resamples", type=int,
                         default=statistics.DEFAULT_RESAMPLES, metavar="N",
-                        help="bootstrap resamples of each interval (default "
+                        help="bootstrap resamples of the IQM's and P(improvement)'s "
+                             "intervals (default "
                              f"{statistics.DEFAULT_RESAMPLES})")
     parser.add_argument("--bootstrap-seed", type=int, default=statistics.DEFAULT_SEED,
                         metavar="SEED", help="seed of the bootstrap (default "
