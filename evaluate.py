@@ -15,9 +15,11 @@
     python evaluate.py --scenario results/latest/incidents.json  # replay every incident
 
 Prints, in 80 columns, per agent the mean speed, mean lap time and incidents per 100 miles,
-each with its 95 % interval (bootstrap over seeds; Garwood's exact interval for counts),
-incidents by kind when there are any, and one verdict per agent pair ("A faster than B
-by D mph [low, high], P(improvement) p"; "no clear difference" when the interval spans 0).
+each with its 95 % interval (Student's t over seeds, marked when under 5 seeds are too few
+to decide; Garwood's exact interval for counts), incidents by kind when there are any, and
+one verdict per agent pair ("A faster than B by D mph [low, high], P(improvement) p";
+"no clear difference" when the interval spans 0, with the seeds that difference would need
+at 80 % power), then the seeds 0.5 mph needs at the spread measured.
 ``--wide`` prints every column in one table instead.
 
 Each run gets a new folder results/<date>_<time> (results/latest links to the newest);
@@ -235,8 +237,6 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     if args.ray is not None and not args.ray.strip():
         parser.error("--ray ADDRESS must be 'auto' or HOST:PORT (or no ADDRESS: a local "
                      "cluster), got an empty string")
-    if args.agents is not None:
-        args.agents = list(dict.fromkeys(args.agents))  # drop repeats, keep the order
     if args.seeds is None:
         episodes = args.episodes or (1 if args.endurance or args.scenario else
                                      DEFAULT_EPISODES)
@@ -257,7 +257,8 @@ def add_report_arguments(parser: argparse.ArgumentParser) -> None:
                              "of the 80-column tables")
     parser.add_argument("--bootstrap-resamples", type=int,
                         default=statistics.DEFAULT_RESAMPLES, metavar="N",
-                        help="bootstrap resamples of each interval (default "
+                        help="bootstrap resamples of the IQM's and P(improvement)'s "
+                             "intervals (default "
                              f"{statistics.DEFAULT_RESAMPLES})")
     parser.add_argument("--bootstrap-seed", type=int, default=statistics.DEFAULT_SEED,
                         metavar="SEED", help="seed of the bootstrap (default "
@@ -315,24 +316,27 @@ def env_settings(args: argparse.Namespace) -> tuple[str, dict[str, Any]]:
     return env_id, env_config
 
 
+def agent_options(args: argparse.Namespace, run: external.AgentRun,
+                  seed: int) -> dict[str, dict[str, Any]]:
+    """The options of one episode's agent (an external planner's folder, port, log; a
+    ``capstone:`` stack's)."""
+    if external.is_external(run.spec):
+        return {external.EXTERNAL_KIND: external.external_options(args, run, seed)}
+    if capstone.is_capstone(run.spec):
+        return {capstone.CAPSTONE_KIND: capstone.capstone_options(args, run.spec, seed)}
+    return {}
+
+
 def episode_specs(args: argparse.Namespace, env_id: str,
                   env_config: dict[str, Any]) -> list[EpisodeSpec]:
     """One episode per (agent, seed), with the incident and external planner options."""
-    return [EpisodeSpec(agent, env_id, seed, (external.external_env_config(env_config)
-                                              if external.is_external(agent) else env_config),
-                        agent_options=agent_options(args, agent, seed),
+    return [EpisodeSpec(run.spec, env_id, seed, (external.external_env_config(env_config)
+                                                 if external.is_external(run.spec)
+                                                 else env_config),
+                        agent_options=agent_options(args, run, seed),
                         incident_history=args.incident_history,
-                        stop_at_incident=args.stop_at_incident)
-            for agent in args.agents for seed in args.seeds]
-
-
-def agent_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
-    """The options of an ``external:`` planner's or a ``capstone:`` stack's episode."""
-    if external.is_external(agent):
-        return {external.EXTERNAL_KIND: external.external_options(args, agent, seed)}
-    if capstone.is_capstone(agent):
-        return {capstone.CAPSTONE_KIND: capstone.capstone_options(args, agent, seed)}
-    return {}
+                        stop_at_incident=args.stop_at_incident, name=run.name)
+            for run in args.agent_runs for seed in args.seeds]
 
 
 @dataclass(frozen=True)
@@ -392,17 +396,21 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
             check_agent_env(agent, env_id)
     except ValueError as error:
         raise SystemExit(f"--agents: {error}") from None
+    # Each agent under its name (an external planner repeated per folder: SPEC@FOLDER).
+    args.agent_runs = external.agent_runs(args.agents, args.planner_cwd)
+    specs_given = args.agents
+    args.agents = [run.name for run in args.agent_runs]
     try:
         probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
-    workers = external.fixed_port_workers(args, args.agents, args.workers or os.cpu_count()
+    workers = external.fixed_port_workers(args, specs_given, args.workers or os.cpu_count()
                                           or 1)
-    if capstone.fixed_port(args, args.agents):  # stacks on one port run one at a time
+    if capstone.fixed_port(args, specs_given):  # stacks on one port run one at a time
         workers = 1
     backend = None
     if args.ray is not None:
-        if external.fixed_port_workers(args, args.agents, 2) == 1:
+        if external.fixed_port_workers(args, specs_given, 2) == 1:
             raise SystemExit("--ray runs episodes in parallel, and external planners on a "
                              "fixed port would collide: put {port} in the command")
         backend = ray_backend(args.ray, args.workers)
@@ -419,7 +427,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         warm_up(specs)  # compile once here, not in every worker (first run only)
     started = time.perf_counter()
     try:
-        with external.planner_maps(args, probe.road):
+        with external.planner_maps(args, args.agent_runs, probe.road):
             runs = run_episodes(specs, workers=workers, progress=not args.no_progress,
                                 backend=backend)
     except ConnectionError as error:  # --ray ADDRESS with no cluster there
@@ -455,7 +463,8 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
     terminal_output(console, analysis, title, args.wide)
     if args.endurance:
         console.print(endurance_table(episodes, f"endurance: {laps} laps, incidents counted, "
-                                                "driving on", analysis.labels).rich())
+                                                "driving on", analysis.labels
+                                       ).rich(console.width))
         best = max(episode["longest_distance_without_incident"] for episode in episodes)
         console.print(f"best distance without incident: {best / METERS_PER_MILE:.2f} miles "
                       f"(seed planner's record: {SEED_RECORD_MILES:.2f} miles)")
@@ -496,9 +505,13 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
                   backend: Any) -> dict[str, Any]:
     """``--scenario``: every agent on each scenario; the verdicts printed and written."""
     started = time.perf_counter()
-    rows, episodes, failures = run_scenarios(args.scenario, args.agents, args.seeds, env_id,
-                                             env_config, workers, not args.no_progress,
-                                             backend)
+    runs = {run.name: run for run in args.agent_runs}
+    rows, episodes, failures = run_scenarios(
+        args.scenario, args.agents, args.seeds, env_id, env_config, workers,
+        not args.no_progress, backend,
+        agent_setup=lambda name, seed: (runs[name].spec,
+                                        agent_options(args, runs[name], seed)),
+        incident_history=args.incident_history)
     wall = time.perf_counter() - started
     run = {"env_id": env_id, "env_config": env_config, "agents": args.agents,
            "seeds": args.seeds, "scenario": str(args.scenario),
@@ -509,7 +522,8 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
         run_folders.point_latest_at(args.output)
     console = Console()
     passed = sum(row["passed"] for row in rows)
-    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}").rich())
+    console.print(verdict_table(rows, f"{env_id}: scenarios of {args.scenario}"
+                                ).rich(console.width))
     console.print(f"{passed} of {len(rows)} passed; {len(rows)} episode(s) in {wall:.1f} s "
                   f"wall time; results in {args.output}: "
                   + ", ".join(path.name for path in files), markup=False, highlight=False)

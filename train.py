@@ -404,7 +404,7 @@ def main(argv: list[str] | None = None) -> Path:
         callbacks.append(ckpt.eval_callback(
             eval_env, args.output, n_eval_episodes=int(evaluation["episodes"]),
             eval_freq=max(int(evaluation["every"]) // config["n_envs"], 1),
-            deterministic=True, verbose=0))
+            deterministic=True, verbose=1))  # prints return, mph, incidents per evaluation
     if not args.no_progress:
         callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps

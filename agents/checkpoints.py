@@ -26,6 +26,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+import numpy as np
+
 CHECKPOINT_SUFFIX = "_steps.zip"
 
 
@@ -223,9 +225,34 @@ def checkpoint_callback(save_freq: int, folder: Path, prefix: str,
                                     save_replay_buffer=with_replay_buffer)
 
 
+def evaluation_line(timesteps: int, returns: list[float],
+                    summaries: list[dict[str, Any]]) -> str:
+    """One evaluation's driving figures as a line, printed beside SB3's own ``Eval ...``
+    lines: the mean return, mean speed and incidents per episode (by kind when any)."""
+    line = (f"Eval num_timesteps={timesteps}: {len(returns)} episode(s), return "
+            f"{np.mean(returns):.2f} +/- {np.std(returns):.2f}")
+    speeds = [summary["mean_speed_mph"] for summary in summaries
+              if summary.get("mean_speed_mph") is not None]
+    if speeds:
+        line += f", mean speed {np.mean(speeds):.2f} mph"
+    if summaries:
+        kinds: dict[str, int] = {}
+        for summary in summaries:
+            for kind, count in summary.get("incidents", {}).items():
+                kinds[kind] = kinds.get(kind, 0) + count
+        total = sum(kinds.values())
+        line += f", incidents {total / len(summaries):.2f} per episode"
+        if total:
+            line += " (" + ", ".join(f"{kind} {count}" for kind, count in kinds.items()
+                                     if count) + ")"
+    return line
+
+
 def eval_callback(eval_env: Any, folder: Path, **kwargs: Any) -> Any:
     """An SB3 ``EvalCallback`` writing ``best_model.zip`` and ``evaluations.npz`` in
-    ``folder``, each atomically."""
+    ``folder``, each atomically. With ``verbose=1`` it prints, at each evaluation, SB3's
+    lines and :func:`evaluation_line` (return, mean mph, incidents); the driving figures
+    also go to the logger (``eval/mean_speed_mph``, ``eval/incidents_per_episode``)."""
     from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
 
     class SaveBest(BaseCallback):
@@ -237,8 +264,28 @@ def eval_callback(eval_env: Any, folder: Path, **kwargs: Any) -> Any:
         """SB3 saves the evaluations with ``np.savez`` to ``log_path``: a temporary name
         here, renamed over ``evaluations.npz`` after each evaluation."""
 
+        def __init__(self, *args: Any, **kwargs: Any) -> None:
+            super().__init__(*args, **kwargs)
+            self.summaries: list[dict[str, Any]] = []  # the evaluation's episodes
+
+        def _log_success_callback(self, locals_: dict[str, Any],
+                                  globals_: dict[str, Any]) -> None:
+            super()._log_success_callback(locals_, globals_)
+            summary = locals_["info"].get("summary") if locals_["done"] else None
+            if summary is not None:  # recorded before SB3 dumps the evaluation's log
+                self.summaries.append(summary)
+                self.logger.record_mean("eval/incidents_per_episode",
+                                        sum(summary.get("incidents", {}).values()))
+                if summary.get("mean_speed_mph") is not None:
+                    self.logger.record_mean("eval/mean_speed_mph", summary["mean_speed_mph"])
+
         def _on_step(self) -> bool:
+            evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+            self.summaries = []
             keep_going = super()._on_step()
+            if evaluating and self.verbose >= 1 and self.evaluations_results:
+                print(evaluation_line(self.num_timesteps, self.evaluations_results[-1],
+                                      self.summaries), flush=True)
             written = Path(f"{self.log_path}.npz")
             if written.is_file():  # complete: np.savez has returned
                 with written.open("rb+") as handle:

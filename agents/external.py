@@ -28,6 +28,8 @@ import contextlib
 import dataclasses
 import hashlib
 import re
+from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Final
 
@@ -191,16 +193,69 @@ def check_external_arguments(parser: argparse.ArgumentParser, args: argparse.Nam
     for folder in args.planner_cwd or ():
         if not Path(folder).expanduser().is_dir():
             parser.error(f"--planner-cwd {folder}: no such folder")
-    externals = [agent for agent in (args.agents or ()) if is_external(agent)]
-    cwds = args.planner_cwd or []
-    if len(cwds) > 1 and len(cwds) != len(externals):
-        parser.error(f"--planner-cwd got {len(cwds)} folders for {len(externals)} external "
-                     "agent(s): give one for all, or one per external agent in the order of "
-                     "--agents")
+    try:  # the folders' count, and repeated agents named apart or refused
+        agent_runs(args.agents or [], args.planner_cwd)
+    except ValueError as error:
+        parser.error(str(error))
 
 
 def is_external(agent: str) -> bool:
     return agent.startswith(EXTERNAL_KIND + ":")
+
+
+FOLDER_SEPARATOR: Final = "@"
+"""Between an external agent's spec and its folder in its name: ``external:./planner@a``."""
+
+
+@dataclass(frozen=True)
+class AgentRun:
+    """One agent of an evaluation: its ``name`` in the results and tables, the ``spec``
+    that builds it, and for an external planner its working folder ``cwd`` (as given to
+    ``--planner-cwd``; ``None``: the current one)."""
+
+    name: str
+    spec: str
+    cwd: str | None = None
+
+
+def agent_runs(agents: Sequence[str], cwds: Sequence[str] | None = None) -> list[AgentRun]:
+    """The agents of ``--agents`` with their folders of ``--planner-cwd`` (none, one for
+    every external agent, or one per external agent in order), each named apart.
+
+    An agent given once is named by its spec. An external spec given more than once is run
+    once per folder, each named ``SPEC@FOLDER`` (``external:./planner@build_a``), so the
+    tables keep them apart. Repeats that cannot be told apart are refused with a
+    ``ValueError``: the same agent twice (not an external planner, or one in the same
+    folder twice) would be one agent run twice under one name.
+    """
+    cwds = list(cwds or [])
+    externals = sum(is_external(agent) for agent in agents)
+    if len(cwds) > 1 and len(cwds) != externals:
+        raise ValueError(f"--planner-cwd got {len(cwds)} folders for {externals} external "
+                         "agent(s): give one for all, or one per external agent in the "
+                         "order of --agents")
+    folders = iter(cwds if len(cwds) > 1 else [])
+    counts = {agent: list(agents).count(agent) for agent in agents}
+    runs, seen = [], set()
+    for agent in agents:
+        cwd = None
+        if is_external(agent):
+            cwd = next(folders) if len(cwds) > 1 else (cwds[0] if cwds else None)
+        elif counts[agent] > 1:
+            raise ValueError(f"--agents names {agent!r} {counts[agent]} times: each agent "
+                             "runs once (only an external planner may repeat, once per "
+                             "--planner-cwd folder); drop the repeats")
+        key = (agent, str(Path(cwd).expanduser().resolve()) if cwd is not None else None)
+        if key in seen:
+            where = f"the folder {cwd}" if cwd is not None else "the current folder"
+            raise ValueError(f"--agents names {agent!r} {counts[agent]} times, and two of "
+                             f"them would run in {where}: that is one planner run twice; "
+                             "give each its own folder (--planner-cwd A B, in the order of "
+                             "the external agents) or drop the repeat")
+        seen.add(key)
+        name = agent if counts[agent] == 1 else f"{agent}{FOLDER_SEPARATOR}{cwd}"
+        runs.append(AgentRun(name, agent, cwd))
+    return runs
 
 
 def apply_reply_latency(args: argparse.Namespace, env_config: dict[str, Any]) -> None:
@@ -209,21 +264,14 @@ def apply_reply_latency(args: argparse.Namespace, env_config: dict[str, Any]) ->
         env_config.update(lockstep_config(args.reply_latency))
 
 
-def planner_cwd(args: argparse.Namespace, agent: str) -> str | None:
-    """The working directory of external ``agent``: ``--planner-cwd``'s one folder, or
-    the one in the position of ``agent`` among the external agents."""
-    cwds = args.planner_cwd or []
-    if not cwds:
-        return None
-    if len(cwds) == 1:
-        return str(Path(cwds[0]).expanduser())
-    externals = [name for name in args.agents if is_external(name)]
-    return str(Path(cwds[externals.index(agent)]).expanduser())
+def planner_cwd(run: AgentRun) -> str | None:
+    """The working directory of an external agent's run (``~`` expanded)."""
+    return None if run.cwd is None else str(Path(run.cwd).expanduser())
 
 
-def external_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
+def external_options(args: argparse.Namespace, run: AgentRun, seed: int) -> dict[str, Any]:
     """The ``external`` options of one episode: the flags, and its log in the run folder."""
-    cwd = planner_cwd(args, agent)
+    cwd, agent = planner_cwd(run), run.spec
     # A readable file name from the command's words without their folders, made unique
     # by the hash of the spec and its folder (commands can be long and differ only in
     # their folders; one command may run in two folders).
@@ -264,13 +312,14 @@ def external_env_config(env_config: dict[str, Any]) -> dict[str, Any]:
             **env_config}
 
 
-def planner_maps(args: argparse.Namespace, road: Any) -> contextlib.ExitStack:
+def planner_maps(args: argparse.Namespace, runs: Sequence[AgentRun],
+                 road: Any) -> contextlib.ExitStack:
     """The env's map in every external agent's ``--planner-map`` file for the whole run,
     each planner's own file put back at the end (:class:`~sdc_gym.bridge.PlannerMap`)."""
     stack = contextlib.ExitStack()
     if args.planner_map is None or road is None:
         return stack
-    folders = {planner_cwd(args, agent) or "." for agent in args.agents if is_external(agent)}
+    folders = {planner_cwd(run) or "." for run in runs if is_external(run.spec)}
     try:
         for folder in sorted(folders):
             stack.enter_context(PlannerMap(road, Path(folder) / Path(args.planner_map)

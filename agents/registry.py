@@ -150,10 +150,16 @@ def agent_label(spec: str) -> str:
     """A short name of an agent for tables and plots: the name itself, or for a
     ``"kind:argument"`` spec the kind and the argument's last part without its folders and
     suffix (``"dqn:agents/highway/policies/dqn_highway.zip"`` -> ``"dqn:dqn_highway"``,
-    ``"external:./build/path_planning --port {port}"`` -> ``"external:path_planning"``);
-    a name that is not (or no longer) registered stays as it is."""
+    ``"external:./build/path_planning --port {port}"`` -> ``"external:path_planning"``;
+    an external planner named by its folder, ``"external:./path_planning@~/a/build"`` ->
+    ``"external:path_planning@build"``); a name that is not (or no longer) registered
+    stays as it is."""
     kind, separator, argument = spec.partition(AGENT_KIND_SEPARATOR)
     if spec in AGENTS or not separator or kind not in AGENT_KINDS or not argument.split():
         return spec
-    words = argument.split()
-    return f"{kind}{AGENT_KIND_SEPARATOR}{Path(words[0]).stem or words[0]}"
+    folder = ""
+    if kind == "external" and "@" in argument:  # agents.external.FOLDER_SEPARATOR
+        argument, _, folder = argument.rpartition("@")
+        folder = "@" + (Path(folder).name or folder)
+    words = argument.split() or [argument]
+    return f"{kind}{AGENT_KIND_SEPARATOR}{Path(words[0]).stem or words[0]}{folder}"

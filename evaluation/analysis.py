@@ -16,7 +16,7 @@ from rich.console import Console
 
 from evaluation import statistics, tables
 from evaluation.summary import AgentSamples, agent_samples, aggregate
-from evaluation.verdicts import Comparison, compare_all
+from evaluation.verdicts import Comparison, compare_all, power_note
 
 
 @dataclass(frozen=True)
@@ -32,6 +32,12 @@ class Analysis:
     @property
     def labels(self) -> dict[str, str]:
         return {sample.agent: sample.label for sample in self.samples}
+
+    def verdicts(self) -> list[str]:
+        """One line per comparison, then the power note (the seeds 0.5 mph needs)."""
+        lines = tables.verdict_lines(self.comparisons)
+        note = power_note(self.comparisons)
+        return [*lines, note] if lines and note else lines
 
     def tables(self, title: str, wide: bool = False) -> list[tables.TableData]:
         """The key table, then incidents by kind (when any) and the track's table; or
@@ -72,11 +78,9 @@ def terminal_output(console: Console, analysis: Analysis, title: str,
                     wide: bool = False) -> None:
     """Print the tables and the verdicts."""
     for table in analysis.tables(title, wide):
-        console.print(table.rich())
-    lines = tables.verdict_lines(analysis.comparisons)
-    if lines:
-        console.print(tables.wrap_verdict(tables.VERDICT_HEADING, console.width),
-                      markup=False, highlight=False)
-    for line in lines:
+        console.print(table.rich(console.width))
+    lines = analysis.verdicts()
+    for line in [tables.VERDICT_HEADING, *lines] if lines else []:
+        # Wrapped at spaces here: rich must not split a name.
         console.print(tables.wrap_verdict(line, console.width), markup=False,
-                      highlight=False)
+                      highlight=False, soft_wrap=True)

@@ -21,7 +21,6 @@ from evaluation.analysis import Analysis, analyse, same_agent_pairs, terminal_ou
 from evaluation.outputs import summary_plots
 from evaluation.report import REPORT_FILE, Report, write_report
 from evaluation.summary import unique_labels
-from evaluation.tables import verdict_lines
 
 
 def run_names(folders: Sequence[Path]) -> list[str]:
@@ -93,7 +92,7 @@ def compare_main(folders: Sequence[Path], console: Console, wide: bool = False,
         written += [image.path for image in images]
         written.append(write_report(output / REPORT_FILE, Report(
             title=title, settings=[("runs", " ".join(map(str, folders)))],
-            tables=analysis.tables(title), verdicts=verdict_lines(analysis.comparisons),
+            tables=analysis.tables(title), verdicts=analysis.verdicts(),
             notes=warnings, plots=images)))
         console.print(f"written to {output}: " + ", ".join(path.name for path in written),
                       markup=False, highlight=False)

@@ -35,7 +35,8 @@ class EpisodeSpec:
     ``agents.registry.make_agent``). ``incident_history`` is the seconds of history in each
     incident report (0: no reports, see :mod:`evaluation.incident_reports`);
     ``stop_at_incident`` ends the episode at its first incident (termination reason
-    ``stop_at_incident``).
+    ``stop_at_incident``). ``name`` is the agent's name in the results (default: the spec
+    ``agent``): one external planner run from two folders is two agents with one spec.
     """
 
     agent: str
@@ -46,6 +47,12 @@ class EpisodeSpec:
     agent_options: dict[str, dict[str, Any]] = field(default_factory=dict)
     incident_history: float = DEFAULT_HISTORY_S
     stop_at_incident: bool = False
+    name: str | None = None
+
+    @property
+    def agent_name(self) -> str:
+        """The agent's name in the results and tables."""
+        return self.name or self.agent
 
 
 TRACE_FIELDS: tuple[str, ...] = ("time", "distance", "speed", "acceleration", "jerk")
@@ -211,7 +218,7 @@ def run_episode(spec: EpisodeSpec, progress: ProgressCallback | None = None) -> 
         if close is not None:
             close()
         env.close()
-    summary.update(agent=spec.agent, env_id=spec.env_id, seed=spec.seed, env_steps=steps,
+    summary.update(agent=spec.agent_name, env_id=spec.env_id, seed=spec.seed, env_steps=steps,
                    wall_time=wall)
     if recorder is not None:
         summary[TRACE_KEY] = recorder.finish()

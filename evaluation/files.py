@@ -56,11 +56,12 @@ def incident_reports(episodes: Iterable[dict[str, Any]]) -> list[dict[str, Any]]
 
 def write_incident_reports(path: Path, episodes: Iterable[dict[str, Any]]) -> int:
     """Every episode's incident reports as one JSON array (atomically), one report per
-    line; returns how many (no file when there are none)."""
+    line; returns how many. Written also without incidents (``[]``), so that a chain such
+    as ``--scenario results/latest/incidents.json`` always finds its file."""
     reports = incident_reports(episodes)
-    if reports:
-        # One report per line: its history's long number lists stay compact.
-        atomic_write_text(path, "[\n" + ",\n".join(map(json.dumps, reports)) + "\n]\n")
+    # One report per line: its history's long number lists stay compact.
+    atomic_write_text(path, "[\n" + ",\n".join(map(json.dumps, reports)) + "\n]\n"
+                      if reports else "[]\n")
     return len(reports)
 
 

@@ -15,8 +15,8 @@ from typing import Any
 
 from evaluation import files, incident_plots, plots, profiles
 from evaluation.analysis import Analysis
+from evaluation.episodes import REPORTS_KEY
 from evaluation.report import REPORT_FILE, Report, ReportImage, write_report
-from evaluation.tables import verdict_lines
 
 PLANNER_LOGS = "planner_logs"  # written by external planners (agents.external.LOG_FOLDER)
 STACK_LOGS = "stack_logs"  # written by capstone stacks (agents.capstone.LOG_FOLDER)
@@ -53,11 +53,12 @@ def write_run(output: Path, episodes: list[dict[str, Any]], analysis: Analysis,
                                   {**run, "statistics": analysis.settings.as_dict()})
     if files.write_traces(output / files.TRACES_FILE, episodes):
         written.append(output / files.TRACES_FILE)
-    if files.write_incident_reports(output / files.INCIDENTS_FILE, episodes):
+    if any(REPORTS_KEY in episode for episode in episodes):  # off: --incident-history 0
+        files.write_incident_reports(output / files.INCIDENTS_FILE, episodes)  # [] if none
         written.append(output / files.INCIDENTS_FILE)
     report = Report(title=f"sdc-gym evaluation: {output.resolve().name}", settings=settings,
                     tables=analysis.tables(title),
-                    verdicts=verdict_lines(analysis.comparisons))
+                    verdicts=analysis.verdicts())
     if plot_options is not None:
         figures = write_plots(output, episodes, analysis, plot_options)
         written += [image.path for image in figures]

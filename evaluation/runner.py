@@ -277,7 +277,7 @@ class _ProgressDisplay:
         if index not in self.tasks:
             spec = self.specs[index]
             self.tasks[index] = self.bar.add_task(
-                f"  {spec.agent} seed {spec.seed}", total=self.laps[index], status="")
+                f"  {spec.agent_name} seed {spec.seed}", total=self.laps[index], status="")
 
     def progress(self, index: int, laps: float, fields: dict[str, float]) -> None:
         self.started(index)
@@ -294,9 +294,9 @@ class _ProgressDisplay:
 
     def failed(self, index: int, reason: str, details: str) -> None:
         spec = self.specs[index]
-        self.failures[index] = EpisodeFailure(spec.agent, spec.seed, reason, details)
+        self.failures[index] = EpisodeFailure(spec.agent_name, spec.seed, reason, details)
         if not self.bar.disable:  # above the live bar, as it happens (the caller reports)
-            self.bar.console.print(f"{spec.agent} seed {spec.seed} failed: {reason}",
+            self.bar.console.print(f"{spec.agent_name} seed {spec.seed} failed: {reason}",
                                    markup=False, highlight=False)
         self._end(index)
 
@@ -321,7 +321,7 @@ def run_episodes(specs: Sequence[EpisodeSpec], workers: int = 1, progress: bool 
     backend = backend or default_backend(workers, len(specs))
     with _ProgressDisplay(specs, progress) as display:
         backend.run(specs, display)
-    missing = [f"{specs[i].agent} seed {specs[i].seed}"
+    missing = [f"{specs[i].agent_name} seed {specs[i].seed}"
                for i, result in enumerate(display.results)
                if result is None and i not in display.failures]
     if missing:

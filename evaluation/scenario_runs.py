@@ -13,12 +13,19 @@ episode's summary and incident log).
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.episodes import EpisodeSpec
-from evaluation.files import atomic_write_text, csv_text
+from evaluation.episodes import REPORTS_KEY, EpisodeSpec
+from evaluation.files import (
+    INCIDENTS_FILE,
+    atomic_write_text,
+    csv_text,
+    write_incident_reports,
+)
+from evaluation.incident_reports import DEFAULT_HISTORY_S
 from evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
 from evaluation.tables import TableData
 from sdc_gym.config import ConfigError
@@ -78,6 +85,9 @@ def _replay_cases(path: Path) -> list[ScenarioCase]:
         raise SystemExit(f"--scenario {path}: not a readable incidents.json ({error})") from None
     if not isinstance(reports, list):
         raise SystemExit(f"--scenario {path}: expected a JSON array of incident reports")
+    if not reports:
+        raise SystemExit(f"--scenario {path}: no incidents to replay (the run that wrote it "
+                         "had none)")
     cases = []
     for index, report in enumerate(reports):
         if not isinstance(report, dict) or report.get("replay") is None:
@@ -99,13 +109,28 @@ def _replay_cases(path: Path) -> list[ScenarioCase]:
     return cases
 
 
+AgentSetup = Callable[[str, int], tuple[str, dict[str, dict[str, Any]]]]
+"""``setup(name, seed) -> (spec, agent_options)``: how the agent ``name`` is built for the
+episode of ``seed`` (an external planner's folder and log); default: the name is the spec."""
+
+
 def scenario_specs(cases: list[ScenarioCase], agents: list[str], seeds: list[int],
-                   env_id: str, env_config: dict[str, Any]) -> list[EpisodeSpec]:
-    """One episode per (scenario, agent, seed); no incident reports, no stop."""
-    return [EpisodeSpec(agent, env_id, seed,
-                        {**env_config, **case.env_config, "scenario": case.scenario},
-                        incident_history=0.0)
-            for case in cases for agent in agents for seed in seeds]
+                   env_id: str, env_config: dict[str, Any],
+                   agent_setup: AgentSetup | None = None,
+                   incident_history: float = DEFAULT_HISTORY_S) -> list[EpisodeSpec]:
+    """One episode per (scenario, agent, seed), with incident reports (``incidents.json``,
+    so that a scenario's incidents can be replayed in turn), no stop."""
+    specs = []
+    for case in cases:
+        for agent in agents:
+            for seed in seeds:
+                spec, options = agent_setup(agent, seed) if agent_setup else (agent, {})
+                specs.append(EpisodeSpec(
+                    spec, env_id, seed,
+                    {**env_config, **case.env_config, "scenario": case.scenario},
+                    agent_options=options, incident_history=incident_history,
+                    name=agent))
+    return specs
 
 
 def verdict_rows(cases: list[ScenarioCase], episodes: list[dict[str, Any]], agents: list[str],
@@ -153,12 +178,15 @@ def verdict_table(rows: list[dict[str, Any]], title: str) -> TableData:
 
 def run_scenarios(path: Path, agents: list[str], seeds: list[int], env_id: str,
                   env_config: dict[str, Any], workers: int, progress: bool,
-                  backend: EpisodeBackend | None = None
+                  backend: EpisodeBackend | None = None, agent_setup: AgentSetup | None = None,
+                  incident_history: float = DEFAULT_HISTORY_S
                   ) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[EpisodeFailure]]:
     """Run every agent on every scenario of ``path`` (worker processes, or ``backend``:
-    Ray); the verdict rows, the episodes and the failures."""
+    Ray); the verdict rows, the episodes and the failures. ``agents`` are names, built
+    by ``agent_setup`` (default: each name is its spec)."""
     cases = scenario_cases(path)
-    specs = scenario_specs(cases, agents, seeds, env_id, env_config)
+    specs = scenario_specs(cases, agents, seeds, env_id, env_config, agent_setup,
+                           incident_history)
     runs = run_episodes(specs, workers=workers, progress=progress, backend=backend)
     return (verdict_rows(cases, runs.results, agents, seeds, runs.failures), runs.results,
             runs.failures)
@@ -166,7 +194,8 @@ def run_scenarios(path: Path, agents: list[str], seeds: list[int], env_id: str,
 
 def write_scenario_run(folder: Path, rows: list[dict[str, Any]],
                        episodes: list[dict[str, Any]], run: dict[str, Any]) -> list[Path]:
-    """``scenarios.csv`` and ``scenarios.json`` into ``folder`` (atomically)."""
+    """``scenarios.csv``, ``scenarios.json`` and ``incidents.json`` (the episodes' incident
+    reports, ``[]`` without any) into ``folder`` (atomically)."""
     folder.mkdir(parents=True, exist_ok=True)
     csv_path, json_path = folder / SCENARIOS_CSV, folder / SCENARIOS_JSON
     atomic_write_text(csv_path, csv_text(rows, COLUMNS))
@@ -174,4 +203,7 @@ def write_scenario_run(folder: Path, rows: list[dict[str, Any]],
              if key not in ("trace", "incident_reports")} for episode in episodes]
     atomic_write_text(json_path, json.dumps({"run": run, "rows": rows, "episodes": keep},
                                             indent=1, default=str) + "\n")
-    return [csv_path, json_path]
+    if not any(REPORTS_KEY in episode for episode in episodes):  # --incident-history 0
+        return [csv_path, json_path]
+    write_incident_reports(folder / INCIDENTS_FILE, episodes)
+    return [csv_path, json_path, folder / INCIDENTS_FILE]

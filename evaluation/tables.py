@@ -11,7 +11,9 @@
 Each returns a :class:`TableData` (title, headers, rows of text), which becomes a rich
 Table (:meth:`TableData.rich`: the ``SIMPLE_HEAD`` box without vertical rules, cells that
 fold instead of being cut with an ellipsis, so a narrow terminal gets every figure) or an
-HTML table in the report (:mod:`evaluation.report`), with the same text.
+HTML table in the report (:mod:`evaluation.report`), with the same text. Names (agents,
+scenarios) are never split: when a table would not fit the terminal with them whole, the
+longest are printed as keys ``(1)``, ``(2)``, ... with each full name under the table.
 """
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import scipy.stats
 from rich import box
 from rich.table import Table
 
@@ -30,6 +33,9 @@ from sdc_gym.units import METERS_PER_MILE
 
 SEED_RECORD_MILES = 276.53
 """Distance without incident of the seed's rule-based planner, miles (to beat)."""
+
+NAME_COLUMNS = ("agent", "scenario")
+"""Headers of the columns that hold names (never split in the printed tables)."""
 
 KIND_HEADERS: dict[str, str] = {
     "collision": "collision", "acceleration": "acc", "jerk": "jerk", "speed": "speed",
@@ -47,6 +53,8 @@ class TableData:
     headers: list[str] = field(default_factory=list)
     left: set[str] = field(default_factory=set)
     rows: list[list[str]] = field(default_factory=list)
+    names: set[str] = field(default_factory=lambda: set(NAME_COLUMNS))
+    """Columns of names, never split (:meth:`rich` prints keys for the longest instead)."""
 
     def add_column(self, header: str, left: bool = False) -> None:
         self.headers.append(header)
@@ -58,17 +66,60 @@ class TableData:
             raise ValueError(f"{len(cells)} cells for {len(self.headers)} columns")
         self.rows.append(list(cells))
 
-    def rich(self) -> Table:
-        table = Table(title=self.title, caption=self.caption, box=box.SIMPLE_HEAD,
+    def rich(self, width: int | None = None) -> Table:
+        """The rich Table; with the terminal's ``width``, names too long to fit whole are
+        replaced by keys, listed with the full names in the caption (:meth:`keyed`)."""
+        data = self.keyed(width) if width is not None else self
+        table = Table(title=data.title, caption=data.caption, box=box.SIMPLE_HEAD,
                       show_edge=False, pad_edge=False, title_justify="left",
                       caption_justify="left")
-        for header in self.headers:  # the names give way (fold) before any figure
-            left = header in self.left
+        for header in data.headers:  # prose gives way (wraps at spaces) before any figure
+            left = header in data.left
             table.add_column(header, justify="left" if left else "right", overflow="fold",
-                             no_wrap=not left)
-        for row in self.rows:
+                             no_wrap=not left or header in data.names)
+        for row in data.rows:
             table.add_row(*row)
         return table
+
+    def keyed(self, width: int) -> TableData:
+        """This table with the longest names replaced by keys ``(1)``, ``(2)``, ... until
+        it fits ``width`` columns with every name and figure whole (prose columns count
+        with their longest word, as they wrap); the keys' names go under the caption."""
+        named = [i for i, header in enumerate(self.headers) if header in self.names]
+        keys: dict[str, str] = {}
+        while True:
+            candidate = self._with_keys(keys)
+            if candidate.narrowest() <= width:
+                return candidate
+            waiting = sorted({row[i] for row in self.rows for i in named if row[i] not in keys},
+                             key=lambda cell: (-len(cell), cell))
+            if not waiting or len(waiting[0]) <= len(f"({len(keys) + 1})"):
+                return candidate  # nothing left to shorten: rich folds what it must
+            keys[waiting[0]] = f"({len(keys) + 1})"
+
+    def narrowest(self) -> int:
+        """The fewest terminal columns this table prints in with every name and figure
+        whole (prose columns wrap at spaces: their longest word), as :meth:`rich` lays it
+        out: one space of padding on each inner side of a column, and the box's one-column
+        rule between columns."""
+        widths = []
+        for i, header in enumerate(self.headers):
+            cells = [header, *(row[i] for row in self.rows)]
+            prose = header in self.left and header not in self.names
+            widths.append(max(len(word) for cell in cells for word in cell.split() or [""])
+                          if prose else max(len(cell) for cell in cells))
+        return sum(widths) + 3 * (len(widths) - 1)
+
+    def _with_keys(self, keys: dict[str, str]) -> TableData:
+        if not keys:
+            return self
+        named = {i for i, header in enumerate(self.headers) if header in self.names}
+        rows = [[keys.get(cell, cell) if i in named else cell for i, cell in enumerate(row)]
+                for row in self.rows]
+        legend = "\n".join(f"{key} {name}" for name, key in keys.items())
+        caption = f"{self.caption}\n{legend}" if self.caption else legend
+        return TableData(self.title, caption, list(self.headers), set(self.left), rows,
+                         set(self.names))
 
 
 def _table(title: str | None = None, caption: str | None = None) -> TableData:
@@ -114,16 +165,41 @@ def rate_with_interval(value: float | None, ci: Sequence[float] | None) -> str:
     return text
 
 
+FEW_SEEDS = 5
+"""Below this many episodes an agent's ``n`` is marked: too few seeds to decide."""
+FEW_SEEDS_MARK = "*"
+
+
+def few_seeds_note(episodes: int) -> str:
+    """The key table's footnote for an agent with ``episodes`` < :data:`FEW_SEEDS`: how wide
+    its t interval is in units of one seed's spread."""
+    if episodes < 2:
+        return f"{FEW_SEEDS_MARK} one seed: no interval, nothing to decide"
+    half_width = float(scipy.stats.t.ppf(0.975, episodes - 1)) / episodes ** 0.5
+    return (f"{FEW_SEEDS_MARK} under {FEW_SEEDS} seeds: too few to decide, the interval is "
+            f"mean ± {half_width:.1f} s.d. of one seed at n = {episodes}")
+
+
 def key_table(rows: list[dict[str, Any]], title: str) -> TableData:
-    """The key columns with their 95 % intervals (fits 80 columns; see the caption)."""
-    table = _table(title, caption="95% CI: bootstrap over seeds; incidents: Garwood; "
-                              "--wide: all")
-    for header, left in (("agent", True), ("n", False), ("mph [95% CI]", False),
-                         ("lap s [95% CI]", False), ("incidents/100mi", False)):
+    """The key columns with their 95 % intervals (fits 80 columns; see the caption). An
+    ``n`` under :data:`FEW_SEEDS` is marked, the caption says why: on the intervals'
+    headers when every agent has so few (the default 3 seeds: the 80 columns have no room
+    for a mark beside each n), else beside each such ``n``."""
+    counts = [row["episodes"] for row in rows]
+    fewest = min(counts, default=FEW_SEEDS)
+    caption = "95% CI: Student t over seeds; incidents: Garwood; --wide: all"
+    if fewest < FEW_SEEDS:
+        caption += "\n" + few_seeds_note(fewest)
+    every_row = bool(counts) and max(counts) < FEW_SEEDS
+    table = _table(title, caption=caption)
+    mark = FEW_SEEDS_MARK * every_row
+    for header, left in (("agent", True), ("n", False), (f"mph [95% CI]{mark}", False),
+                         (f"lap s [95% CI]{mark}", False), ("incidents/100mi", False)):
         _column(table, header, left)
     for row in rows:
+        few = FEW_SEEDS_MARK if row["episodes"] < FEW_SEEDS and not every_row else ""
         table.add_row(
-            row["label"], str(row["episodes"]),
+            row["label"], f"{row['episodes']}{few}",
             with_interval(row["mean_speed_mph"], row["mean_speed_mph_ci"], 2),
             with_interval(row["mean_lap_time"], row["mean_lap_time_ci"], 1, 0),
             rate_with_interval(row["incidents_per_100_miles"],
@@ -199,7 +275,8 @@ def wide_table(rows: list[dict[str, Any]], title: str) -> TableData:
 
 
 VERDICT_HEADING = ("verdicts: difference of mean mph [95% CI]; P(improvement): the chance "
-                   "that an episode of the first agent is faster than one of the second")
+                   "that an episode of the first agent is faster than one of the second; "
+                   "seeds to decide: per agent, at 80% power, from the spread measured")
 """What the verdict lines say (printed before them, in the report above them)."""
 
 

@@ -1,12 +1,16 @@
 """One line per pair of agents: who is faster, by how much, and how sure that is.
 
 A :class:`Comparison` of agents A and B (A the one with the higher mean speed) holds the
-difference of their mean speeds with its 95 % bootstrap interval (paired by seed when both
-drove the same seeds), P(improvement) of A over B with its interval, and their incident
-rates with the exact test of equal rates. Its :attr:`~Comparison.verdict` says "faster"
-only when the interval of the difference excludes 0, otherwise "no clear difference":
+difference of their mean speeds with its 95 % t interval (paired by seed when both drove
+the same seeds, else Welch's), P(improvement) of A over B with its interval, the spread
+of one seed's difference, and their incident rates with the exact test of equal rates.
+Its :attr:`~Comparison.verdict` says "faster" only when the interval of the difference
+excludes 0, otherwise "no clear difference" and how many seeds that difference would need
+to be decided at 80 % power (:func:`evaluation.statistics.seeds_needed`):
 
-    fsm_bold faster than dqn:dqn_highway by 0.64 mph [0.21, 1.05], P(improvement) 0.71
+    fsm_bold faster than lane_keeping by 5.34 mph [2.53, 8.15], P(improvement) 1.00
+    fsm_bold vs fsm_conservative: no clear difference, +1.36 mph [-2.26, 4.98],
+        P(improvement) 0.67, ~16 seeds to decide
 
 and, when either had incidents, :attr:`~Comparison.incident_note` compares their rates.
 """
@@ -43,6 +47,16 @@ class Comparison:
     incidents: tuple[int, int]
     incident_rates: tuple[float | None, float | None]  # per 100 miles
     incident_p_value: float
+    spread: float | None = None  # s.d. of one seed's mph difference (paired) or pooled
+
+    @property
+    def seeds_to_decide(self) -> int | None:
+        """Seeds per agent at which the observed difference would be told apart at 80 %
+        power, from the measured spread (``None``: no spread measured, or noise-level)."""
+        if self.spread is None or self.speed_difference.value is None:
+            return None
+        return statistics.seeds_needed(self.speed_difference.value, self.spread,
+                                       self.paired)
 
     @property
     def clear(self) -> bool:
@@ -70,6 +84,10 @@ class Comparison:
                         f"{span}")
         if self.improvement.value is not None and not self.identical:
             text += f", P(improvement) {self.improvement.value:.2f}"
+        if d.has_interval and not self.clear and not self.identical:
+            needed = self.seeds_to_decide
+            text += (f", ~{needed} seeds to decide" if needed is not None
+                     else ", not decidable by seeds")
         return text
 
     @property
@@ -102,6 +120,8 @@ class Comparison:
             "probability_of_improvement": self.improvement.value,
             "probability_of_improvement_ci": self.improvement.ci(),
             "clear": self.clear, "identical": self.identical,
+            "speed_difference_spread_mph": self.spread,
+            "seeds_to_decide": self.seeds_to_decide,
             "incidents": list(self.incidents),
             "incidents_per_100_miles": list(self.incident_rates),
             "incident_rate_p_value": self.incident_p_value,
@@ -124,6 +144,12 @@ def compare(first: AgentSamples, second: AgentSamples,
     paired = first.seeds == second.seeds
     x, y = first.speed_mph, second.speed_mph
     name = "speed_mph"
+    spread = None
+    if paired and len(x) >= 2:
+        spread = float(np.std(x - y, ddof=1))
+    elif len(x) >= 2 and len(y) >= 2:  # pooled: the two-sample test's s.d.
+        spread = float(np.sqrt(((len(x) - 1) * np.var(x, ddof=1) + (len(y) - 1)
+                                * np.var(y, ddof=1)) / (len(x) + len(y) - 2)))
     return Comparison(
         a=first.label, b=second.label, paired=paired,
         speed_difference=statistics.mean_difference(x, y, name, paired, settings),
@@ -133,7 +159,28 @@ def compare(first: AgentSamples, second: AgentSamples,
         incident_rates=(statistics.poisson_rate(first.incident_total, first.miles).value,
                         statistics.poisson_rate(second.incident_total, second.miles).value),
         incident_p_value=statistics.rate_ratio_test(first.incident_total, first.miles,
-                                                    second.incident_total, second.miles))
+                                                    second.incident_total, second.miles),
+        spread=spread)
+
+
+POWER_DIFFERENCE_MPH = 0.5
+"""The difference the power note plans for (:func:`power_note`)."""
+
+
+def power_note(comparisons: Sequence[Comparison],
+               difference: float = POWER_DIFFERENCE_MPH) -> str:
+    """How many seeds ``difference`` mph needs at 80 % power, from the median spread of
+    the comparisons (paired ones when there are any); "" without a spread."""
+    paired = [c.spread for c in comparisons if c.paired and c.spread is not None]
+    spreads = paired or [c.spread for c in comparisons if c.spread is not None]
+    if not spreads:
+        return ""
+    spread = float(np.median(spreads))
+    needed = statistics.seeds_needed(difference, spread, bool(paired))
+    seeds = f"~{needed} seeds" if needed is not None else "more seeds than can be run"
+    kind = "per-seed differences" if paired else "per-seed speeds"
+    return (f"to tell {difference:g} mph apart at 80% power: {seeds} (median s.d. of "
+            f"the {kind} here: {spread:.2f} mph)")
 
 
 def compare_all(samples: Sequence[AgentSamples],

@@ -5,6 +5,7 @@ episode with its reason, in bounded time, leaving no process behind."""
 from __future__ import annotations
 
 import json
+import os
 import shlex
 import socket
 import subprocess
@@ -156,17 +157,30 @@ def test_a_planner_that_crashes_at_start_is_reported_with_its_output(tmp_path):
 
 
 def test_a_missing_command_and_a_busy_port_are_named(tmp_path):
-    result = run("external:./path_planning", OVAL, cwd=str(tmp_path))
-    assert result["termination_reason"] == "planner_not_found"
-    assert "./path_planning" in result["abort_message"] and str(tmp_path) in result[
-        "abort_message"]
+    """A missing command is ``planner_not_found`` whatever the port's state: checked before
+    the port, so also while another program holds it (the port is held here, never assumed
+    free). Only a runnable planner meets a busy port: ``port_in_use``, naming the holder."""
     with socket.socket() as other:  # another program already on the planner's port
         other.bind(("127.0.0.1", 0))
         other.listen()
         port = other.getsockname()[1]
+        for options in ({"port": port}, {}):  # the held port, and the default (4567)
+            result = run("external:./path_planning", OVAL, cwd=str(tmp_path), **options)
+            assert result["termination_reason"] == "planner_not_found"
+            assert "./path_planning" in result["abort_message"]
+            assert f"no such file: {tmp_path / 'path_planning'}" in result["abort_message"]
+        script = tmp_path / "not_executable.sh"
+        script.write_text("#!/bin/sh\n")
+        result = run("external:./not_executable.sh", OVAL, cwd=str(tmp_path), port=port)
+        assert result["termination_reason"] == "planner_not_found"
+        assert "is not executable (chmod +x ./not_executable.sh)" in result["abort_message"]
+        result = run("external:no-such-planner-xyz --port {port}", OVAL, cwd=str(tmp_path))
+        assert result["termination_reason"] == "planner_not_found"
+        assert "no program 'no-such-planner-xyz' on PATH" in result["abort_message"]
         result = run(external(*STRAIGHT), OVAL, port=port)
     assert result["termination_reason"] == "port_in_use"
     assert f"port {port} is already in use" in result["abort_message"]
+    assert f"by pid {os.getpid()} (" in result["abort_message"]  # this test holds it
     assert {"planner_not_found", "port_in_use", "reply_timeout"} <= set(FAULT_REASONS)
 
 
@@ -262,11 +276,12 @@ def test_no_planner_outlives_a_parent_killed_without_warning(tmp_path):
         parent.stdout.close()
 
 
-def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_path):
-    """The same planner command in two folders (--planner-cwd per external agent): each
-    reads the env's map from its own folder; a folder whose file holds the same numbers
-    (printed differently) is not touched, one with another map gets the env's for the
-    run and its own back after; the two logs do not overwrite each other."""
+def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_path, capsys):
+    """The same planner command twice with a folder each (--planner-cwd per external
+    agent): both run, named apart by folder (``SPEC@FOLDER``) in the rows and the table;
+    each reads the env's map from its own folder; a folder whose file holds the same
+    numbers (printed differently) is not touched, one with another map gets the env's for
+    the run and its own back after; the two logs do not overwrite each other."""
     from sdc_gym.bridge.map_file import map_text
     from sdc_gym.road.builtin_highways import get_highway_map
 
@@ -280,17 +295,24 @@ def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_p
     before = {folder: (folder / "highway_map.csv").read_bytes() for folder in (same, other)}
     stamp = (same / "highway_map.csv").stat().st_mtime_ns
     planner = external("--map", "highway_map.csv")
-    planner_b = external("--map", "./highway_map.csv")  # the same planner, named apart
     output = tmp_path / "run"
-    result = evaluate.main(["--agents", planner, planner_b, "--config",
+    result = evaluate.main(["--agents", planner, planner, "--config",
                             str(Path(evaluate.__file__).parent / "configs/highway_oval.yaml"),
                             "--planner-cwd", str(same), str(other), "--planner-map",
                             "highway_map.csv", "--reply-latency", "5", "--seeds", "1",
                             "--no-plots", "--no-progress", "--workers", "1",
                             "--output", str(output)])
     rows = {row["agent"]: row for row in result["rows"]}
-    assert rows[planner]["laps"] == rows[planner_b]["laps"] == 1  # both drove the oval
-    assert rows[planner]["mean_lap_time"] == pytest.approx(rows[planner_b]["mean_lap_time"])
+    in_same, in_other = f"{planner}@{same}", f"{planner}@{other}"
+    assert list(rows) == [in_same, in_other]  # each run, none dropped
+    assert rows[in_same]["laps"] == rows[in_other]["laps"] == 1  # both drove the oval
+    assert rows[in_same]["mean_lap_time"] == pytest.approx(rows[in_other]["mean_lap_time"])
+    assert [row["label"] for row in rows.values()] == [
+        "external:python@same", "external:python@other"]
+    out = capsys.readouterr().out
+    assert "external:python@same" in out and "external:python@other" in out
+    episodes = json.loads((output / "summary.json").read_text())["episodes"]
+    assert [episode["agent"] for episode in episodes] == [in_same, in_other]
     for folder in (same, other):
         assert (folder / "highway_map.csv").read_bytes() == before[folder]
         assert sorted(path.name for path in folder.iterdir()) == ["highway_map.csv"]
@@ -300,6 +322,34 @@ def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_p
     with pytest.raises(SystemExit):  # two folders for one external agent
         evaluate.main(["--agents", planner, "--planner-cwd", str(same), str(other),
                        "--output", str(output)])
+
+
+def test_repeated_agents_are_named_apart_by_folder_or_refused(tmp_path, capsys):
+    """A repeated external spec with a folder each runs once per folder, named
+    ``SPEC@FOLDER``; repeats that would be one agent twice are refused, naming it."""
+    from agents.external import AgentRun, agent_runs
+
+    assert agent_runs(["fsm_bold", "external:./p", "external:./p", "external:./q"],
+                      ["a", "b", "c"]) == [
+        AgentRun("fsm_bold", "fsm_bold"), AgentRun("external:./p@a", "external:./p", "a"),
+        AgentRun("external:./p@b", "external:./p", "b"),
+        AgentRun("external:./q", "external:./q", "c")]
+    assert agent_runs(["external:./p"], ["a"]) == [AgentRun("external:./p", "external:./p", "a")]
+    for agents, cwds, message in [
+            (["fsm_bold", "fsm_bold"], [], "names 'fsm_bold' 2 times: each agent runs once"),
+            (["external:./p", "external:./p"], [], "would run in the current folder"),
+            (["external:./p", "external:./p"], ["a"], "would run in the folder a"),
+            (["external:./p", "external:./p"], ["a", "./a"], "would run in the folder ./a"),
+            (["external:./p", "external:./p"], ["a", "b", "c"], "got 3 folders for 2")]:
+        with pytest.raises(ValueError, match=message):
+            agent_runs(agents, cwds)
+    folder = tmp_path / "a"
+    folder.mkdir()
+    with pytest.raises(SystemExit):  # evaluate.py says so before running anything
+        evaluate.main(["--agents", "external:./p", "external:./p", "--planner-cwd",
+                       str(folder), "--output", str(tmp_path / "run")])
+    assert "one planner run twice" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()
 
 
 def test_external_planners_drive_on_after_a_collision_unless_configured():

@@ -58,8 +58,10 @@ def test_evaluate_writes_episode_rows_summary_traces_and_plots(tmp_path, capsys)
     # The agent's row carries its intervals, in the JSON and in agents.csv.
     speeds = [episode["mean_speed_mph"] for episode in summary["episodes"]]
     low, high = agent["mean_speed_mph_ci"]
-    assert min(speeds) <= low <= agent["mean_speed_mph"] <= high <= max(speeds)
     assert agent["mean_speed_mph"] == pytest.approx(np.mean(speeds))
+    # Student's t with 1 degree of freedom, t(1; 0.975) = 12.7062: s / sqrt(2) = |a - b| / 2.
+    half = 12.7062 * abs(speeds[0] - speeds[1]) / 2
+    assert (low, high) == pytest.approx((np.mean(speeds) - half, np.mean(speeds) + half))
     assert agent["incidents_per_100_miles"] == 0.0
     miles = sum(episode["distance"] for episode in summary["episodes"]) / 1609.344
     assert agent["incidents_per_100_miles_ci"] == pytest.approx([0.0, 368.888 / miles],

@@ -82,7 +82,14 @@ def test_stop_at_incident_ends_the_episode_and_the_report_shows_how_it_came(tmp_
     assert output / "incidents.json" in result["files"]
 
 
-def test_no_incident_no_report_file_and_history_zero_turns_reports_off(tmp_path):
+def test_history_zero_turns_reports_off_and_writes_no_report_file(tmp_path):
+    """With reports on, incidents.json is always written (``[]`` without incidents, so a
+    ``--scenario results/latest/incidents.json`` chain finds it); ``--incident-history 0``
+    turns reports off: no file (an empty one would claim no incidents)."""
+    from evaluation.files import write_incident_reports
+
+    assert write_incident_reports(tmp_path / "none.json", []) == 0
+    assert (tmp_path / "none.json").read_text() == "[]\n"
     output = tmp_path / "run"
     result = evaluate.main(["--agents", "lane_keeping", "--env", "sdc_gym/HighwayLoop-v0",
                             "--seeds", "0", "--laps", "1", "--incident-history", "0",

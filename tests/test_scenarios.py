@@ -4,6 +4,8 @@ the FSM styles; per-episode scenarios through reset options, single and batched;
 
 from __future__ import annotations
 
+import json
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -271,3 +273,30 @@ def test_evaluate_scenario_prints_and_writes_pass_or_fail_with_the_reason(tmp_pa
     with pytest.raises(SystemExit, match="no such file or folder"):
         evaluate.main(["--scenario", str(tmp_path / "none.yaml"), "--output",
                        str(tmp_path / "other"), "--no-progress"])
+
+
+def test_the_readmes_chain_replays_the_incidents_of_the_latest_run(tmp_path, monkeypatch):
+    """README: ``--scenario LIBRARY`` then ``--scenario results/latest/incidents.json``. A
+    scenario run writes its incidents too, so the chain replays them (the same collision
+    again); a run without incidents writes ``[]`` and the replay says there is nothing."""
+    import evaluate
+
+    monkeypatch.chdir(tmp_path)  # results/ and results/latest here
+    quick = ["--workers", "1", "--no-progress"]
+    first = evaluate.main(["--scenario", str(library_path("stress_cut_in_10m")),
+                           "--agents", "lane_keeping", *quick])
+    latest = tmp_path / "results" / "latest"
+    assert latest.resolve() == first["output"].resolve()
+    reports = json.loads((latest / "incidents.json").read_text())
+    assert [report["kind"] for report in reports] == ["collision"]
+    replay = evaluate.main(["--scenario", "results/latest/incidents.json",
+                            "--agents", "lane_keeping", *quick])
+    [row] = replay["rows"]
+    assert row["scenario"].startswith("0_") and row["passed"] is False
+    assert row["reason"].startswith("collision with car at ")
+    clean = evaluate.main(["--scenario", str(library_path("stress_cut_in_10m")),
+                           "--agents", "fsm_conservative", *quick])
+    assert clean["rows"][0]["passed"] is True
+    assert (latest / "incidents.json").read_text() == "[]\n"
+    with pytest.raises(SystemExit, match="no incidents to replay"):
+        evaluate.main(["--scenario", "results/latest/incidents.json", *quick])

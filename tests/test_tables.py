@@ -105,3 +105,42 @@ def test_a_default_run_reads_whole_in_80_columns():
         (row,) = [line for line in lines if line.startswith(f"{label} ")
                   and "faster" not in line]
         assert "mph" not in row and row.count("[") == 3  # mph, lap, incidents intervals
+
+
+def test_long_names_are_never_split_keys_stand_in_for_those_that_do_not_fit():
+    """Agent names of external planners in their folders, scenario names: at 80 columns
+    every name is printed whole, in a row or in the legend under the table with its key;
+    the verdicts wrap at spaces, never inside a name."""
+    from evaluation.scenario_runs import verdict_table
+
+    long_a = "external:path_planning_with_a_long_name@build_release_a"
+    long_b = "external:path_planning_with_a_long_name@build_release_b"
+    episodes = [track_episode(agent, seed, mph, 0)
+                for agent, mph in ((long_a, 46.1), (long_b, 44.0), ("lane_keeping", 42.0))
+                for seed in range(3)]
+    result = analyse(episodes, Settings(resamples=500), labels={
+        long_a: long_a, long_b: long_b, "lane_keeping": "lane_keeping"})
+    console = Console(width=80, record=True, color_system=None)
+    terminal_output(console, result, "sdc_gym/HighwayLoop-v0: seed(s) 0 1 2 x 1 lap(s)")
+    text = console.export_text()
+    lines = [line.rstrip() for line in text.splitlines()]
+    assert max(len(line) for line in lines) <= 80 and "…" not in text
+    for name in (long_a, long_b):
+        assert sum(name in line for line in lines) >= 3  # legend and verdicts, whole
+        key = next(line.split()[0] for line in lines if line.endswith(f" {name}"))
+        assert key in ("(1)", "(2)")
+        assert any(line.startswith(f"{key} ") and "[" in line for line in lines)  # its row
+    assert any(line.startswith("lane_keeping ") for line in lines)  # short: as it is
+    # 3 seeds each: the intervals' headers are marked, the caption says why.
+    assert "mph [95% CI]*" in text and "* under 5 seeds: too few to decide" in text
+
+    scenario = "stress_cut_in_10m_with_a_really_long_descriptive_name_beyond_the_table"
+    rows = [{"scenario": scenario, "agent": agent, "seed": 0, "passed": False,
+             "reason": "collision with car at 123.4 s, 5.6 m ahead in the next lane over"}
+            for agent in (long_a, "lane_keeping")]
+    console = Console(width=80, record=True, color_system=None)
+    console.print(verdict_table(rows, "scenarios").rich(console.width))
+    text = console.export_text()
+    assert max(len(line) for line in text.splitlines()) <= 80
+    words = text.split()
+    assert scenario in words and long_a in words and "lane_keeping" in words

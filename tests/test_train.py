@@ -3,8 +3,10 @@ hyperparameters from YAML by env id with command-line overrides, and log driving
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -21,7 +23,7 @@ def write_config(tmp_path: Path, **extra) -> Path:
     return path
 
 
-def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path):
+def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path, capsys):
     from stable_baselines3 import PPO
 
     output = tmp_path / "run"
@@ -42,6 +44,20 @@ def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path):
     assert [p.name for p in checkpoints] == ["ppo_256_steps.zip", "ppo_512_steps.zip"]
     events = list((output / "tensorboard").rglob("events.out.tfevents.*"))
     assert events
+    # Each evaluation prints SB3's verbose=1 lines and ours: return, mean mph, incidents,
+    # the same returns as evaluations.npz holds.
+    out = capsys.readouterr().out
+    evaluations = np.load(output / "evaluations.npz")
+    assert list(evaluations["timesteps"]) == [256, 512]
+    lines = re.findall(r"^Eval num_timesteps=(\d+): (\d+) episode\(s\), return (\S+) \+/- "
+                       r"\S+, mean speed (\S+) mph, incidents (\S+) per episode", out, re.M)
+    assert [int(line[0]) for line in lines] == [256, 512]
+    for line, returns in zip(lines, evaluations["results"], strict=True):
+        assert int(line[1]) == len(returns)
+        assert float(line[2]) == pytest.approx(np.mean(returns), abs=0.006)
+        assert 0.0 <= float(line[3]) < 80.0 and float(line[4]) >= 0.0  # (an untrained
+        # policy may keep the car standing: 0.00 mph)
+    assert "Eval num_timesteps=256, episode_reward=" in out  # SB3's own line
     # Interrupted after the first checkpoint: only it survives.
     checkpoints[1].unlink()
     model.unlink()

@@ -24,6 +24,7 @@ from __future__ import annotations
 import os
 import select
 import shlex
+import shutil
 import signal
 import socket
 import subprocess
@@ -59,6 +60,50 @@ def port_is_open(port: int, host: str = "127.0.0.1") -> bool:
     with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as probe:
         probe.settimeout(1.0)
         return probe.connect_ex((host, port)) == 0
+
+
+def program_problem(program: str, cwd: Path) -> str | None:
+    """Why ``program`` cannot be started from ``cwd`` (``None``: it can), looked up as
+    ``execvp`` does after ``cd cwd``: a path with a slash relative to ``cwd``, a bare name
+    on ``PATH``."""
+    if os.sep not in program:
+        return None if shutil.which(program) else f"no program {program!r} on PATH"
+    path = cwd / os.path.expanduser(program)
+    if not path.exists():
+        return f"no such file: {path}"
+    if path.is_dir():
+        return f"{path} is a folder, not a program"
+    if not os.access(path, os.X_OK):
+        return f"{path} is not executable (chmod +x {program})"
+    return None
+
+
+def port_holder(port: int) -> str | None:
+    """The process listening on TCP ``port``, as ``pid N (command)``, when Linux's
+    ``/proc`` tells (only processes of this user are visible); else ``None``."""
+    inodes = set()
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            lines = Path(table).read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()  # local address HEX_IP:HEX_PORT, state 0A = LISTEN
+            if len(fields) > 9 and fields[3] == "0A" \
+                    and int(fields[1].rpartition(":")[2], 16) == port:
+                inodes.add(f"socket:[{fields[9]}]")
+    if not inodes:
+        return None
+    for fd_folder in Path("/proc").glob("[0-9]*/fd"):
+        try:
+            if any(os.readlink(fd) in inodes for fd in fd_folder.iterdir()):
+                pid = fd_folder.parent.name
+                words = (fd_folder.parent / "cmdline").read_bytes().split(b"\0")
+                command = " ".join(word.decode(errors="replace") for word in words if word)
+                return f"pid {pid} ({command[:120]})"
+        except OSError:  # gone, or another user's
+            continue
+    return None
 
 
 class PlannerProcess:
@@ -129,11 +174,18 @@ class PlannerProcess:
             raise RuntimeError("the planner process was already started")
         if not self.cwd.is_dir():
             raise PlannerNotFound(f"the planner's working directory does not exist: {self.cwd}")
+        # The command first: a missing planner is the fault to report, whoever holds the port.
+        problem = program_problem(self.arguments[0], self.cwd)
+        if problem is not None:
+            raise PlannerNotFound(f"cannot start the planner {self.command_line!r} in "
+                                  f"{self.cwd}: {problem}")
         if port_is_open(self.port):
+            holder = port_holder(self.port)
             raise PortInUse(
-                f"port {self.port} is already in use before the planner started (another "
-                "planner still running?); stop that process, or give the command a {port} "
-                "argument so that a free port is chosen")
+                f"port {self.port} is already in use before the planner started"
+                f"{f', by {holder}' if holder else ''} (another planner still running?); "
+                "stop that process, or give the command a {port} argument so that a free "
+                "port is chosen")
         if self.log_path is None:
             handle, name = tempfile.mkstemp(prefix="sdc_gym_planner_", suffix=".log")
             os.close(handle)
