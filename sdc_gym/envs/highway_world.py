@@ -226,7 +226,11 @@ class HighwayWorld:
         self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT,
                                     object_slots=self.episodes.object_slots)
         capacity = reset_capacity(self.traffic)
-        if self.car_count > capacity:
+        # A config's scenario places its own cars (checked against the road and each
+        # other); the bound is for the cars placed at random around the ego.
+        scenario = self.episodes.scenario
+        random_cars = self.car_count - (len(scenario.cars) if scenario is not None else 0)
+        if random_cars > capacity:
             raise ConfigError(
                 f"{owner}: config key 'traffic.car_count' must be at most {capacity} on this "
                 f"road ({self.road.lane_count} lanes, cars placed within +-"
