@@ -14,7 +14,7 @@ type) are read from the YAML next to the model: ``<model>.yaml`` or the run fold
 the run's ``checkpoints/``); without one the env's defaults apply.
 
 ``rllib:PATH`` is an RLlib checkpoint folder (``train.py --framework rllib``), loaded by
-:mod:`agents.rllib_policy` behind the same ``predict`` as an SB3 model.
+:mod:`sdc_agents.rllib_policy` behind the same ``predict`` as an SB3 model.
 """
 
 from __future__ import annotations
@@ -59,12 +59,12 @@ def resolve_model_path(path: str | Path) -> Path:
 
 def load_model(kind: str, path: str | Path) -> Any:
     """The model of ``kind`` saved at ``path`` (on the CPU): an SB3 algorithm's, or an
-    RLlib policy (:class:`agents.rllib_policy.RLlibPolicy`) for ``"rllib"``."""
+    RLlib policy (:class:`sdc_agents.rllib_policy.RLlibPolicy`) for ``"rllib"``."""
     if kind not in POLICY_KINDS:
         raise ValueError(f"unknown policy kind {kind!r}; valid: {list(POLICY_KINDS)}")
     model_path = resolve_model_path(path)
     if kind == RLLIB_KIND:
-        from agents.rllib_policy import load_rllib_policy  # Ray only when used
+        from sdc_agents.rllib_policy import load_rllib_policy  # Ray only when used
 
         return load_rllib_policy(model_path)
     import stable_baselines3

@@ -2,7 +2,7 @@
 
 ``evaluate.py --agents rllib:runs/ppo/model`` drives the path-level envs with an RLlib
 policy trained on a behavior-level env (``train.py --framework rllib``), exactly where an
-SB3 policy sits (:mod:`agents.policy_agent`): the layered agent only calls
+SB3 policy sits (:mod:`sdc_agents.policy_agent`): the layered agent only calls
 ``predict(observation, deterministic=True)`` and reads ``observation_space``.
 
 ``PATH`` is an RLlib checkpoint folder: a whole algorithm's (``Algorithm.save_to_path``:

@@ -92,7 +92,7 @@ def track_single(steps: int, seed: int = 0) -> dict[str, Any]:
 def reference_lap(seed: int) -> dict[str, Any]:
     import gymnasium as gym
 
-    from agents.registry import make_agent
+    from sdc_agents.registry import make_agent
 
     env = gym.make(TRACK, config={"observe_light_states": True})
     agent = make_agent("dbw_ground_truth", env)

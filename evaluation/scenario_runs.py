@@ -17,10 +17,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.episodes import EpisodeSpec
-from evaluation.files import atomic_write_text, csv_text
-from evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
-from evaluation.tables import TableData
+from sdc_evaluation.episodes import EpisodeSpec
+from sdc_evaluation.files import atomic_write_text, csv_text
+from sdc_evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
+from sdc_evaluation.tables import TableData
 from sdc_gym.config import ConfigError
 from sdc_gym.scenarios.replay import incident_scenario
 from sdc_gym.validation.scenarios import load_scenario

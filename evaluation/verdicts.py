@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from evaluation import statistics
-from evaluation.summary import AgentSamples
+from sdc_evaluation import statistics
+from sdc_evaluation.summary import AgentSamples
 
 SIGNIFICANCE = 0.05
 """p-value under which two incident rates are called different."""

@@ -16,8 +16,8 @@ import gymnasium as gym
 import pytest
 
 import evaluate
-from agents.registry import AGENTS, make_agent, parse_agent_spec
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_agents.registry import AGENTS, make_agent, parse_agent_spec
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.bridge import (
     FAULT_REASONS,
     PlannerOptions,
@@ -303,7 +303,7 @@ def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_p
 
 
 def test_external_planners_drive_on_after_a_collision_unless_configured():
-    from agents.external import EXTERNAL_PATH_POINTS, external_env_config
+    from sdc_agents.external import EXTERNAL_PATH_POINTS, external_env_config
 
     assert external_env_config({}) == {"terminate_on_collision": False,
                                        "path_points": EXTERNAL_PATH_POINTS}

@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 import evaluate
-from evaluation.episodes import REPORTS_KEY
-from evaluation.incident_reports import IncidentRecorder
+from sdc_evaluation.episodes import REPORTS_KEY
+from sdc_evaluation.incident_reports import IncidentRecorder
 
 
 def observation(t: float) -> dict:

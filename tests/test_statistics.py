@@ -1,4 +1,4 @@
-"""evaluation.statistics and evaluation.verdicts: known answers for every estimate."""
+"""sdc_evaluation.statistics and sdc_evaluation.verdicts: known answers for every estimate."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from rliable import metrics as rliable_metrics
 
-from evaluation import statistics
-from evaluation.statistics import (
+from sdc_evaluation import statistics
+from sdc_evaluation.statistics import (
     Settings,
     iqm_interval,
     mean_difference,
@@ -17,8 +17,8 @@ from evaluation.statistics import (
     probability_of_improvement,
     rate_ratio_test,
 )
-from evaluation.summary import AgentSamples
-from evaluation.verdicts import compare
+from sdc_evaluation.summary import AgentSamples
+from sdc_evaluation.verdicts import compare
 
 FAST = Settings(resamples=2000)
 

@@ -6,9 +6,9 @@ import pytest
 from rich.console import Console
 
 import evaluate
-from evaluation.analysis import analyse, terminal_output
-from evaluation.statistics import Settings
-from evaluation.tables import wide_table, wrap_verdict
+from sdc_evaluation.analysis import analyse, terminal_output
+from sdc_evaluation.statistics import Settings
+from sdc_evaluation.tables import wide_table, wrap_verdict
 
 CONFIGS = evaluate.Path(evaluate.__file__).resolve().parent / "configs"
 KINDS = ("collision", "acceleration", "jerk", "speed", "lane", "off_road", "red_light")
