@@ -75,6 +75,7 @@ from rich.console import Console
 
 from sdc_agents import external
 from sdc_agents.registry import AGENT_KINDS, AGENTS, parse_agent_spec
+from sdc_configs import config_path
 from sdc_evaluation import run_folders, statistics
 from sdc_evaluation.analysis import analyse, terminal_output
 from sdc_evaluation.compare import compare_main
@@ -162,7 +163,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     external.add_external_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
-    parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
+    parser.add_argument("--config", type=config_path, default=None,
+                        help="env config YAML: a path, or a packaged name (track_loop)")
     parser.add_argument("--map", default=None, metavar="NAME_OR_FILE",
                         help="highway map: a built-in name (default, oval) or a file in the "
                              "original x y s dx dy format, e.g. the Udacity highway_map.csv "
@@ -496,6 +498,11 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
             "output": args.output}
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """The command line's exit status: 1 when episodes failed (their results are still
+    written), else 0 (``sdc-evaluate`` and ``python -m sdc_evaluation`` call this too)."""
+    return 1 if main(argv).get("failures") else 0
+
+
 if __name__ == "__main__":
-    # Exit status 1 when episodes failed (their results are still written).
-    sys.exit(1 if main().get("failures") else 0)
+    sys.exit(cli())

@@ -53,6 +53,8 @@ import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
 from sdc_agents import checkpoints as ckpt
+from sdc_configs import config_path
+from sdc_configs import packaged as packaged_config
 from sdc_evaluation.files import atomic_write_text
 from sdc_gym.config import ConfigError
 from sdc_gym.validation.rules import Choice
@@ -70,7 +72,7 @@ RLLIB_ALGORITHMS = ("ppo", "dqn")
 """RLlib's (``--framework rllib``; ``sdc_training.rllib_config.ALGORITHMS``); ``ALGORITHMS``
 are stable-baselines3's (``--framework sb3``, the default)."""
 FRAMEWORKS = ("sb3", "rllib")
-HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
+HYPERPARAMS_DIR = packaged_config("hyperparams")  # configs/hyperparams, installed too
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
             "framework"}
 CHECKPOINT_EVERY = 10_000
@@ -81,7 +83,9 @@ DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--config", type=Path, default=None, help="run config YAML")
+    parser.add_argument("--config", type=config_path, default=None,
+                        help="run config YAML: a path, or a packaged name "
+                             "(train_highway_behavior)")
     parser.add_argument("--env", default=None, help="env id (overrides the config's)")
     parser.add_argument("--algo", default=None,
                         choices=sorted(set(ALGORITHMS) | set(RLLIB_ALGORITHMS)),
@@ -89,7 +93,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              f"{', '.join(RLLIB_ALGORITHMS)} (default: the config's, else ppo)")
     parser.add_argument("--framework", default=None, choices=FRAMEWORKS,
                         help="sb3 (stable-baselines3, default) or rllib (RLlib on Ray)")
-    parser.add_argument("--tune", type=Path, default=None, metavar="SWEEP_YAML",
+    parser.add_argument("--tune", type=config_path, default=None, metavar="SWEEP_YAML",
                         help="a Ray Tune sweep (search space, scheduler), e.g. "
                              "configs/tune/highway_ppo.yaml (RLlib)")
     parser.add_argument("--ray", default=None, metavar="ADDRESS",

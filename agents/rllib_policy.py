@@ -92,4 +92,5 @@ def load_rllib_policy(path: str | Path) -> RLlibPolicy:
     """The policy of the RLlib checkpoint at ``path`` (see the module doc), on the CPU."""
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    return RLlibPolicy(RLModule.from_checkpoint(rl_module_folder(path)))
+    # An absolute path: RLlib (pyarrow) takes a relative one for a URI without a scheme.
+    return RLlibPolicy(RLModule.from_checkpoint(rl_module_folder(path).absolute()))

@@ -17,8 +17,8 @@ Modules, from the episode up:
 * :mod:`~sdc_evaluation.analysis`: rows + comparisons for a run or runs side by side;
 * :mod:`~sdc_evaluation.tables`: the 80-column tables (and the wide one);
 * :mod:`~sdc_evaluation.files`: the CSV, JSON and NPZ files, atomically;
-* :mod:`~sdc_evaluation.plots`, :mod:`~sdc_evaluation.profiles`, :mod:`~sdc_evaluation.incident_plots`:
-  the PNG figures; :mod:`~sdc_evaluation.report`: the self-contained ``report.html``;
+* :mod:`~sdc_evaluation.plots`, :mod:`~sdc_evaluation.profiles`,
+  :mod:`~sdc_evaluation.incident_plots`: the PNG figures; :mod:`~sdc_evaluation.report`: the self-contained ``report.html``;
 * :mod:`~sdc_evaluation.outputs`: everything a run writes; :mod:`~sdc_evaluation.run_folders`:
   timestamped run folders and ``results/latest``; :mod:`~sdc_evaluation.compare`: runs side
   by side.

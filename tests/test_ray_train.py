@@ -354,3 +354,21 @@ def test_committed_rllib_hyperparameters_and_sweeps_are_valid():
                 sweep = read_sweep(path)
                 if sweep.get("algo", "ppo") == algo:
                     check_run_config({**run, "tune": sweep})
+
+
+def test_an_rllib_agent_with_a_relative_path_as_the_docs_write_it(ppo_run, monkeypatch):
+    """``evaluate.py --agents rllib:runs/ppo_rllib/model`` (docs/ray.md, README): a path
+    relative to the working folder drives as the absolute one (RLlib alone reads a relative
+    path as a URI: ``ArrowInvalid: URI has empty scheme``)."""
+    output, model, _ = ppo_run
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"steps_per_action": 12})
+    absolute = make_agent(f"rllib:{model}", env)
+    monkeypatch.chdir(output.parent)
+    relative = make_agent(f"rllib:{Path(output.name) / model.name}", env)
+    observation, _ = env.reset(seed=4)
+    absolute.reset()
+    relative.reset()
+    for _ in range(3):
+        action = relative.act(observation)
+        np.testing.assert_array_equal(action, absolute.act(observation))
+        observation, *_ = env.step(action)
