@@ -360,6 +360,8 @@ def test_an_rllib_agent_with_a_relative_path_as_the_docs_write_it(ppo_run, monke
     """``evaluate.py --agents rllib:runs/ppo_rllib/model`` (docs/ray.md, README): a path
     relative to the working folder drives as the absolute one (RLlib alone reads a relative
     path as a URI: ``ArrowInvalid: URI has empty scheme``)."""
+    from sdc_agents.registry import make_agent
+
     output, model, _ = ppo_run
     env = gym.make("sdc_gym/HighwayLoop-v0", config={"steps_per_action": 12})
     absolute = make_agent(f"rllib:{model}", env)
