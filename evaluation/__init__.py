@@ -18,7 +18,8 @@ Modules, from the episode up:
 * :mod:`~sdc_evaluation.tables`: the 80-column tables (and the wide one);
 * :mod:`~sdc_evaluation.files`: the CSV, JSON and NPZ files, atomically;
 * :mod:`~sdc_evaluation.plots`, :mod:`~sdc_evaluation.profiles`,
-  :mod:`~sdc_evaluation.incident_plots`: the PNG figures; :mod:`~sdc_evaluation.report`: the self-contained ``report.html``;
+  :mod:`~sdc_evaluation.incident_plots`: the PNG figures; :mod:`~sdc_evaluation.report`:
+  the self-contained ``report.html``;
 * :mod:`~sdc_evaluation.outputs`: everything a run writes; :mod:`~sdc_evaluation.run_folders`:
   timestamped run folders and ``results/latest``; :mod:`~sdc_evaluation.compare`: runs side
   by side.

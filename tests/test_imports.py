@@ -4,8 +4,8 @@ The graph is read from the source (every ``import`` anywhere in a module, also t
 inside functions, which still close a circle when they run), over the packages
 ``sdc_gym``, ``sdc_agents``, ``sdc_evaluation`` and ``sdc_training`` (the folders
 ``sdc_gym/``, ``agents/``, ``evaluation/`` and ``training/``: pyproject's package-dir) and
-the scripts ``evaluate.py`` and ``train.py``. ``from package import name`` counts as importing ``package.name`` when that
-is a module, else ``package`` itself.
+the scripts ``evaluate.py`` and ``train.py``. ``from package import name`` counts as
+importing ``package.name`` when that is a module, else ``package`` itself.
 """
 
 from __future__ import annotations
