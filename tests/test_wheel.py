@@ -56,6 +56,30 @@ def test_the_package_list_names_every_package_folder_of_the_tree():
     assert set(settings["packages"]) == expected
 
 
+def test_config_arguments_name_a_file_or_a_packaged_config(tmp_path, monkeypatch):
+    """``--config`` / ``--tune`` (:func:`sdc_configs.config_path`): a file that exists is
+    itself; else the repo path, the file name or the bare name of a packaged config, from
+    any folder; anything else an error naming the value and the packaged configs."""
+    import argparse
+
+    from sdc_configs import config_path, packaged, packaged_names
+
+    configs = ROOT / "configs"
+    assert packaged() == configs  # the editable install maps sdc_configs onto configs/
+    monkeypatch.chdir(tmp_path)
+    for text in ("configs/track_loop.yaml", "track_loop.yaml", "track_loop"):
+        assert config_path(text) == configs / "track_loop.yaml"
+    assert config_path("tune/highway_ppo") == configs / "tune" / "highway_ppo.yaml"
+    own = tmp_path / "track_loop.yaml"  # the user's own file of the same name wins
+    own.write_text("config: {}\n")
+    assert config_path("track_loop.yaml") == Path("track_loop.yaml")
+    assert "hyperparams/dqn" in packaged_names() and "train_highway_behavior" in packaged_names()
+    with pytest.raises(argparse.ArgumentTypeError,
+                       match=r"'nowhere.yaml': no such file, nor a packaged config; "
+                             r"packaged: highway_dense_traffic, .*track_loop"):
+        config_path("nowhere.yaml")
+
+
 @dataclass(frozen=True)
 class Install:
     venv: Path
