@@ -11,10 +11,12 @@ packages and ours import side by side.
 numba compiles the kernels where the package is installed (its cache lives next to the
 modules, stamped with the hash of the package's kernel modules:
 :mod:`sdc_gym.kernel_compiler`). A cold install costs ~47 s CPU for the highway's kernels
-(one lane-keeping episode) and ~27 s more for the behavior env's (training); the files
-are the same bytes as the checkout's, so the checkout's cache files are copied into the
-install first and load there (the stamp decides; a stale one is ignored and recompiled):
-the module then takes ~25 s CPU instead of ~100 s (docs/install.md).
+(a lane-keeping episode: 5 s once cached) and ~32 s for the behavior env's (the
+training); the files are the same bytes as the checkout's, so the checkout's cache files
+are copied into the install first and load there (the stamp decides; a stale or missing
+one is compiled). With the checkout's caches current the module took 52 s CPU (124 s wall
+at load 14 on the 2-core machine), most of it five interpreters importing torch and
+numba; cold, with only part of them, 84 s (docs/install.md).
 """
 
 from __future__ import annotations
