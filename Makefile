@@ -10,14 +10,18 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[dev,ray,capstone]"
+	$(PY) -m pip install --quiet -e ".[dev,ray,capstone,video]"
 	touch $(STAMP)
 
 # The HTML report's test opens it in a real headless browser: Debian's chromium, installed
-# here when missing (as root, e.g. on CI; others are told the command).
+# here when missing (as root, e.g. on CI, after a line that says so; others are told the
+# command).
 CHROMIUM ?= /usr/bin/chromium
 $(CHROMIUM):
 	@if [ "$$(id -u)" = 0 ]; then \
+		echo "make test: $(CHROMIUM) is missing; installing Debian's chromium now, as root," \
+			"with apt-get (the HTML report's test opens the page in it; to skip this," \
+			"install chromium yourself first)."; \
 		apt-get -o DPkg::Lock::Timeout=600 update -qq && \
 		apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends chromium; \
 	else \

@@ -34,7 +34,7 @@ Written atomically:
     summary.json       the run's settings, the agents' rows, the comparisons and every
                        episode's summary (with its incident_log)
     traces.npz         per-step time, distance, speed, acceleration, jerk of every episode
-                       (arrays "agent/seed/field"; evaluation.files.load_traces reads it)
+                       (arrays "agent/seed/field"; sdc_evaluation.files.load_traces reads it)
     means.png          mean speed and lap time per agent with 95 % intervals
     incidents.png      incidents by kind per agent, with the rate per 100 miles
     profiles.png       speed, acceleration and jerk over distance, one seed (--plot-seed)
@@ -54,7 +54,7 @@ traceback); the other episodes still run and are written, and the exit status is
 
 ``--scenario PATH`` (a scenario file, a folder of them, or an incidents.json to replay)
 runs every agent on each scenario and prints pass or fail with the reason, into
-scenarios.csv and scenarios.json (:mod:`evaluation.scenario_runs`, ``docs/scenarios.md``).
+scenarios.csv and scenarios.json (:mod:`sdc_evaluation.scenario_runs`, ``docs/scenarios.md``).
 
 Endurance mode drives ``N`` laps in one episode per (agent, seed) with
 ``terminate_on_collision`` off, so incidents are counted and the car drives on, and reports
@@ -76,27 +76,28 @@ from typing import Any
 import gymnasium as gym
 from rich.console import Console
 
-from agents import capstone, external
-from agents.registry import AGENT_KINDS, AGENTS, check_agent_env, parse_agent_spec
-from evaluation import run_folders, statistics
-from evaluation.analysis import analyse, terminal_output
-from evaluation.compare import compare_main
-from evaluation.episodes import EpisodeSpec
-from evaluation.incident_plots import EgoShape
-from evaluation.incident_reports import DEFAULT_HISTORY_S
-from evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
-from evaluation.plots import Limits
-from evaluation.profiles import stop_line_distances
-from evaluation.runner import run_episodes
-from evaluation.scenario_runs import (
+from sdc_agents import capstone, external
+from sdc_agents.registry import AGENT_KINDS, AGENTS, check_agent_env, parse_agent_spec
+from sdc_configs import config_path
+from sdc_evaluation import run_folders, statistics
+from sdc_evaluation.analysis import analyse, terminal_output
+from sdc_evaluation.compare import compare_main
+from sdc_evaluation.episodes import EpisodeSpec
+from sdc_evaluation.incident_plots import EgoShape
+from sdc_evaluation.incident_reports import DEFAULT_HISTORY_S
+from sdc_evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
+from sdc_evaluation.plots import Limits
+from sdc_evaluation.profiles import stop_line_distances
+from sdc_evaluation.runner import run_episodes
+from sdc_evaluation.scenario_runs import (
     SCENARIOS_CSV,
     SCENARIOS_JSON,
     run_scenarios,
     verdict_table,
     write_scenario_run,
 )
-from evaluation.tables import SEED_RECORD_MILES, endurance_table
-from evaluation.warmup import warm_up
+from sdc_evaluation.tables import SEED_RECORD_MILES, endurance_table
+from sdc_evaluation.warmup import warm_up
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.ray import LOCAL
 from sdc_gym.units import METERS_PER_MILE
@@ -167,7 +168,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     capstone.add_capstone_arguments(parser)
     parser.add_argument("--env", default=None,
                         help=f"env id (default: the config's, else {DEFAULT_ENV})")
-    parser.add_argument("--config", type=Path, default=None, help="YAML file in configs/")
+    parser.add_argument("--config", type=config_path, default=None,
+                        help="env config YAML: a path, or a packaged name (track_loop)")
     parser.add_argument("--map", default=None, metavar="NAME_OR_FILE",
                         help="highway map: a built-in name (default, oval) or a file in the "
                              "original x y s dx dy format, e.g. the Udacity highway_map.csv "
@@ -490,7 +492,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
 def ray_backend(address: str, workers: int | None) -> Any:
     """The Ray backend for ``--ray`` (a clear error without the optional extra)."""
     try:
-        from evaluation.ray_backend import RayBackend
+        from sdc_evaluation.ray_backend import RayBackend
         from sdc_gym.ray import START_A_CLUSTER, unreachable
     except ImportError as error:
         raise SystemExit(f"--ray needs Ray: pip install -e \".[ray]\" ({error})") from None
@@ -531,6 +533,11 @@ def scenario_main(args: argparse.Namespace, argv: list[str], env_id: str,
             "output": args.output}
 
 
+def cli(argv: list[str] | None = None) -> int:
+    """The command line's exit status: 1 when episodes failed (their results are still
+    written), else 0 (``sdc-evaluate`` and ``python -m sdc_evaluation`` call this too)."""
+    return 1 if main(argv).get("failures") else 0
+
+
 if __name__ == "__main__":
-    # Exit status 1 when episodes failed (their results are still written).
-    sys.exit(1 if main().get("failures") else 0)
+    sys.exit(cli())

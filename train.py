@@ -9,9 +9,9 @@ gets its own folder.
     python train.py --tune configs/tune/highway_ppo.yaml --config ... --output runs/sweep
 
 ``--framework rllib`` trains with RLlib on a Ray cluster (``--ray ADDRESS``, default a
-local one for the run; :mod:`training.rllib_trainer`), hyperparameters from
+local one for the run; :mod:`sdc_training.rllib_trainer`), hyperparameters from
 ``configs/hyperparams/rllib_<algo>.yaml``; ``--tune SWEEP.yaml`` sweeps them with Ray Tune
-(:mod:`training.tune_sweep`). Both need the extra ``pip install -e ".[ray]"``.
+(:mod:`sdc_training.tune_sweep`). Both need the extra ``pip install -e ".[ray]"``.
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
 ``algo``, ``timesteps``, ``n_envs``, ``seed``, ``checkpoint_every`` and ``eval``
@@ -52,9 +52,11 @@ import gymnasium as gym
 import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents import checkpoints as ckpt
-from evaluation.files import atomic_write_text
-from evaluation.run_folders import remove_stale_temporaries
+from sdc_agents import checkpoints as ckpt
+from sdc_configs import config_path
+from sdc_configs import packaged as packaged_config
+from sdc_evaluation.files import atomic_write_text
+from sdc_evaluation.run_folders import remove_stale_temporaries
 from sdc_gym.config import ConfigError
 from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
@@ -66,14 +68,14 @@ from sdc_gym.validation.run_config import (
     resolved_policy_kwargs,
 )
 from sdc_gym.validation.yaml_files import parse_yaml
-from training.driving_metrics import driving_metrics
-from training.yaml_files import read_yaml
+from sdc_training.driving_metrics import driving_metrics
+from sdc_training.yaml_files import read_yaml
 
 RLLIB_ALGORITHMS = ("ppo", "dqn")
-"""RLlib's (``--framework rllib``; ``training.rllib_config.ALGORITHMS``); ``ALGORITHMS``
+"""RLlib's (``--framework rllib``; ``sdc_training.rllib_config.ALGORITHMS``); ``ALGORITHMS``
 are stable-baselines3's (``--framework sb3``, the default)."""
 FRAMEWORKS = ("sb3", "rllib")
-HYPERPARAMS_DIR = Path(__file__).resolve().parent / "configs" / "hyperparams"
+HYPERPARAMS_DIR = packaged_config("hyperparams")  # configs/hyperparams, installed too
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
             "framework"}
 CHECKPOINT_EVERY = 10_000
@@ -84,7 +86,9 @@ DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--config", type=Path, default=None, help="run config YAML")
+    parser.add_argument("--config", type=config_path, default=None,
+                        help="run config YAML: a path, or a packaged name "
+                             "(train_highway_behavior)")
     parser.add_argument("--env", default=None, help="env id (overrides the config's)")
     parser.add_argument("--algo", default=None,
                         choices=sorted(set(ALGORITHMS) | set(RLLIB_ALGORITHMS)),
@@ -92,7 +96,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              f"{', '.join(RLLIB_ALGORITHMS)} (default: the config's, else ppo)")
     parser.add_argument("--framework", default=None, choices=FRAMEWORKS,
                         help="sb3 (stable-baselines3, default) or rllib (RLlib on Ray)")
-    parser.add_argument("--tune", type=Path, default=None, metavar="SWEEP_YAML",
+    parser.add_argument("--tune", type=config_path, default=None, metavar="SWEEP_YAML",
                         help="a Ray Tune sweep (search space, scheduler), e.g. "
                              "configs/tune/highway_ppo.yaml (RLlib)")
     parser.add_argument("--ray", default=None, metavar="ADDRESS",
@@ -196,7 +200,7 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
     for ``--framework rllib`` and ``--tune`` too (the algorithm: ``--algo``, else the
     sweep file's, else the run config's). Then every value is checked
     (:mod:`sdc_gym.validation.run_config`; RLlib's hyperparameters by
-    :mod:`training.rllib_config`) and SystemExit names the key, the value and what is valid.
+    :mod:`sdc_training.rllib_config`) and SystemExit names the key, the value and what is valid.
     """
     saved = args.output / "config.yaml"
     if args.resume:
@@ -236,7 +240,7 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
                          f"must be 'rllib' with it, got {framework!r}")
     sweep = None
     if args.tune is not None:
-        from training.tune_sweep import read_sweep
+        from sdc_training.tune_sweep import read_sweep
 
         sweep = read_sweep(args.tune)
     algo = first_given(args.algo, (sweep or {}).get("algo"), data.get("algo"), "ppo")
@@ -421,10 +425,10 @@ def main(argv: list[str] | None = None) -> Path:
 
 
 def check_rllib_config(config: dict[str, Any], source: str) -> None:
-    """RLlib's hyperparameters checked (:func:`training.rllib_config.check_run_config`):
+    """RLlib's hyperparameters checked (:func:`sdc_training.rllib_config.check_run_config`):
     ConfigError naming the key; SystemExit when Ray is not installed."""
     try:
-        from training.rllib_config import check_run_config as check_rllib_run
+        from sdc_training.rllib_config import check_run_config as check_rllib_run
     except ImportError as error:
         raise SystemExit(f"--framework rllib needs Ray: pip install -e \".[ray]\" "
                          f"({error})") from None
@@ -432,9 +436,9 @@ def check_rllib_config(config: dict[str, Any], source: str) -> None:
 
 
 def train_with_ray(config: dict[str, Any], args: argparse.Namespace) -> Path:
-    """An RLlib run, or a Tune sweep of RLlib runs (:mod:`training`)."""
-    from training.rllib_trainer import train_rllib
-    from training.tune_sweep import sweep
+    """An RLlib run, or a Tune sweep of RLlib runs (:mod:`sdc_training`)."""
+    from sdc_training.rllib_trainer import train_rllib
+    from sdc_training.tune_sweep import sweep
 
     try:
         return sweep(config, args) if config.get("tune") else train_rllib(config, args)

@@ -3,7 +3,7 @@
 A capstone team's whole ROS stack, which talks to the original track simulator through
 its styx server, drives ``sdc_gym/TrackLoop-v0`` unchanged: sdc-gym plays the simulator
 (:mod:`sdc_gym.capstone`). :class:`CapstoneStackAgent` is an ordinary agent for
-:func:`evaluation.episodes.run_episode`: at its first action it starts the command in its
+:func:`sdc_evaluation.episodes.run_episode`: at its first action it starts the command in its
 working directory (``--stack-cwd``) under the planner bridge's process machinery and
 connects to the server; every action is one step's messages (telemetry, control,
 traffic lights, camera) and the stack's latest commands back; at the end of the episode
@@ -29,7 +29,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.protocol import EpisodeAborted
+from sdc_agents.protocol import EpisodeAborted
 from sdc_gym.bridge.errors import BridgeError
 from sdc_gym.capstone.session import CapstoneOptions, CapstoneSession
 from sdc_gym.envs.track_loop import TrackLoopEnv

@@ -3,7 +3,7 @@
 A planner written for the original highway simulator (a uWebSockets server on port 4567,
 usually C++) drives ``sdc_gym/HighwayLoop-v0`` unchanged through the original's wire
 protocol (:mod:`sdc_gym.bridge`). :class:`ExternalPlannerAgent` is an ordinary agent for
-:func:`evaluation.episodes.run_episode`: at its first action it exports the map (if asked),
+:func:`sdc_evaluation.episodes.run_episode`: at its first action it exports the map (if asked),
 starts the planner command in its working directory, connects; every action is one
 exchange (the step's ``info["telemetry"]`` out, the path back); at the end of the episode
 the planner is stopped with its whole process group. Its faults end the episode with
@@ -37,7 +37,7 @@ import gymnasium as gym
 import numpy as np
 from numpy.typing import NDArray
 
-from agents.protocol import EpisodeAborted
+from sdc_agents.protocol import EpisodeAborted
 from sdc_gym.bridge import (
     DEFAULT_LOG_LIMIT_BYTES,
     BridgeError,
@@ -87,7 +87,7 @@ class ExternalPlannerAgent:
 
     def act(self, observation: Any, info: dict[str, Any]) -> NDArray[np.float64]:
         """The planner's reply to this step's telemetry (raises
-        :class:`~agents.protocol.EpisodeAborted` on a fault)."""
+        :class:`~sdc_agents.protocol.EpisodeAborted` on a fault)."""
         try:
             if self.session is None:
                 self.session = PlannerSession(self.command, self.options, road=self._road)

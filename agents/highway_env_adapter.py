@@ -59,7 +59,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from agents.policy_agent import load_model, training_config
+from sdc_agents.policy_agent import load_model, training_config
 from sdc_gym.config import resolve_config
 from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
 from sdc_gym.stack.highway.behavior import BehaviorDecision

@@ -14,7 +14,7 @@ type) are read from the YAML next to the model: ``<model>.yaml`` or the run fold
 the run's ``checkpoints/``); without one the env's defaults apply.
 
 ``rllib:PATH`` is an RLlib checkpoint folder (``train.py --framework rllib``), loaded by
-:mod:`agents.rllib_policy` behind the same ``predict`` as an SB3 model.
+:mod:`sdc_agents.rllib_policy` behind the same ``predict`` as an SB3 model.
 """
 
 from __future__ import annotations
@@ -46,25 +46,34 @@ SB3_KINDS = ("ppo", "dqn", "sac", "a2c")
 RLLIB_KIND = "rllib"
 """The agent spec prefix of RLlib checkpoints: ``rllib:<checkpoint folder>``."""
 POLICY_KINDS = (*SB3_KINDS, RLLIB_KIND)
-PROJECT_ROOT = Path(__file__).resolve().parents[1]
+PACKAGE_DIR = Path(__file__).resolve().parent
+"""This package's folder: ``agents/`` in a checkout, ``site-packages/sdc_agents/`` installed."""
+PACKAGE_FOLDER = "agents"
+"""The package's folder name in the repo, as the committed policies' paths begin
+(``agents/highway/policies/dqn_highway.zip``)."""
 
 
 def resolve_model_path(path: str | Path) -> Path:
-    """``path`` as given, or relative to the project (committed policies) if only there."""
-    given = Path(path)
-    if not given.exists() and not given.is_absolute() and (PROJECT_ROOT / given).exists():
-        return PROJECT_ROOT / given
-    return given
+    """``path`` as given when it exists, else a committed model's path
+    (``agents/highway/...``) inside this package wherever it is installed (from any folder,
+    also next to a user's own ``agents/``), as an absolute path: RLlib reads a relative
+    checkpoint path as a URI and fails (``ArrowInvalid: URI has empty scheme``)."""
+    given = Path(path).expanduser()
+    if not given.exists() and not given.is_absolute() and given.parts[:1] == (PACKAGE_FOLDER,):
+        packaged = PACKAGE_DIR.joinpath(*given.parts[1:])
+        if packaged.exists():
+            return packaged
+    return given.absolute()
 
 
 def load_model(kind: str, path: str | Path) -> Any:
     """The model of ``kind`` saved at ``path`` (on the CPU): an SB3 algorithm's, or an
-    RLlib policy (:class:`agents.rllib_policy.RLlibPolicy`) for ``"rllib"``."""
+    RLlib policy (:class:`sdc_agents.rllib_policy.RLlibPolicy`) for ``"rllib"``."""
     if kind not in POLICY_KINDS:
         raise ValueError(f"unknown policy kind {kind!r}; valid: {list(POLICY_KINDS)}")
     model_path = resolve_model_path(path)
     if kind == RLLIB_KIND:
-        from agents.rllib_policy import load_rllib_policy  # Ray only when used
+        from sdc_agents.rllib_policy import load_rllib_policy  # Ray only when used
 
         return load_rllib_policy(model_path)
     import stable_baselines3

@@ -1,9 +1,9 @@
 """Agents by name, so that scripts can say ``--agents lane_keeping`` and build one per env.
 
 An agent has ``name``, ``reset()`` (start of an episode) and ``act(observation)`` (the
-action for ``env.step``; see :mod:`agents.protocol`). A factory takes the (unwrapped) env
+action for ``env.step``; see :mod:`sdc_agents.protocol`). A factory takes the (unwrapped) env
 it will drive, so it can read the map and the env's configuration. This module is the one
-door of the package for the evaluation machinery (:mod:`evaluation`): it builds agents and
+door of the package for the evaluation machinery (:mod:`sdc_evaluation`): it builds agents and
 re-exports the protocol.
 """
 
@@ -15,11 +15,11 @@ from typing import Any, Final
 
 import gymnasium as gym
 
-from agents.highway.fsm import DrivingStyle
-from agents.highway.fsm_agent import fsm_agent
-from agents.lane_keeping import LaneKeepingDriver
-from agents.protocol import Agent, EpisodeAborted
-from agents.track.dbw_agent import dbw_agent
+from sdc_agents.highway.fsm import DrivingStyle
+from sdc_agents.highway.fsm_agent import fsm_agent
+from sdc_agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.protocol import Agent, EpisodeAborted
+from sdc_agents.track.dbw_agent import dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
 __all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label",
@@ -56,19 +56,19 @@ AgentKindFactory = Callable[..., Agent]
 
 
 def _external_agent(argument: str, env: gym.Env, **options: Any) -> Agent:
-    from agents.external import external_agent  # the websocket client only when used
+    from sdc_agents.external import external_agent  # the websocket client only when used
 
     return external_agent(argument, env, **options)
 
 
 def _capstone_agent(argument: str, env: gym.Env, **options: Any) -> Agent:
-    from agents.capstone import capstone_agent  # the Socket.IO client only when used
+    from sdc_agents.capstone import capstone_agent  # the Socket.IO client only when used
 
     return capstone_agent(argument, env, **options)
 
 
 def _policy_agent(kind: str, argument: str, env: gym.Env) -> Agent:
-    from agents.policy_agent import policy_agent  # SB3 and torch only when used
+    from sdc_agents.policy_agent import policy_agent  # SB3 and torch only when used
 
     return policy_agent(env, kind, argument)
 
@@ -158,7 +158,7 @@ def agent_label(spec: str) -> str:
     if spec in AGENTS or not separator or kind not in AGENT_KINDS or not argument.split():
         return spec
     folder = ""
-    if kind == "external" and "@" in argument:  # agents.external.FOLDER_SEPARATOR
+    if kind == "external" and "@" in argument:  # sdc_agents.external.FOLDER_SEPARATOR
         argument, _, folder = argument.rpartition("@")
         folder = "@" + (Path(folder).name or folder)
     words = argument.split() or [argument]

@@ -2,7 +2,7 @@
 
 ``evaluate.py --agents rllib:runs/ppo/model`` drives the path-level envs with an RLlib
 policy trained on a behavior-level env (``train.py --framework rllib``), exactly where an
-SB3 policy sits (:mod:`agents.policy_agent`): the layered agent only calls
+SB3 policy sits (:mod:`sdc_agents.policy_agent`): the layered agent only calls
 ``predict(observation, deterministic=True)`` and reads ``observation_space``.
 
 ``PATH`` is an RLlib checkpoint folder: a whole algorithm's (``Algorithm.save_to_path``:
@@ -92,4 +92,5 @@ def load_rllib_policy(path: str | Path) -> RLlibPolicy:
     """The policy of the RLlib checkpoint at ``path`` (see the module doc), on the CPU."""
     from ray.rllib.core.rl_module.rl_module import RLModule
 
-    return RLlibPolicy(RLModule.from_checkpoint(rl_module_folder(path)))
+    # An absolute path: RLlib (pyarrow) takes a relative one for a URI without a scheme.
+    return RLlibPolicy(RLModule.from_checkpoint(rl_module_folder(path).absolute()))

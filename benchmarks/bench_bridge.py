@@ -31,7 +31,7 @@ from typing import Any
 import gymnasium as gym
 
 import sdc_gym  # noqa: F401  (registers the ids)
-from agents.registry import make_agent
+from sdc_agents.registry import make_agent
 from sdc_gym.bridge import (
     PlannerOptions,
     PlannerSession,

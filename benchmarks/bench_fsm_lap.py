@@ -16,7 +16,7 @@ import time
 import gymnasium as gym
 
 import sdc_gym  # noqa: F401
-from agents.registry import make_agent
+from sdc_agents.registry import make_agent
 
 
 def lap(agent_name: str, frames: int, seed: int) -> tuple[float, float, float, bool]:

@@ -20,7 +20,7 @@ import warnings
 import gymnasium as gym
 
 import sdc_gym  # noqa: F401
-from agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.lane_keeping import LaneKeepingDriver
 
 
 def time_sdc_gym(cars: int, frames: int, seconds: float, seed: int = 0) -> float:

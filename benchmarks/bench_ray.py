@@ -38,8 +38,8 @@ sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 from bench_behavior import ppo_samples_per_second  # noqa: E402
 
 import train  # noqa: E402
-from evaluation.episodes import EpisodeSpec  # noqa: E402
-from evaluation.runner import ProcessPoolBackend, run_episodes  # noqa: E402
+from sdc_evaluation.episodes import EpisodeSpec  # noqa: E402
+from sdc_evaluation.runner import ProcessPoolBackend, run_episodes  # noqa: E402
 
 ENV = "sdc_gym/HighwayLoop-v0"
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
@@ -75,7 +75,7 @@ def _nested(result: dict, path: str) -> float | None:
 def rllib_samples_per_second(samples: int, n_envs: int) -> float:
     import torch
 
-    from training.rllib_config import algorithm_config
+    from sdc_training.rllib_config import algorithm_config
 
     torch.set_num_threads(1)
     hyper = train.load_hyperparams("ppo", BEHAVIOR, "rllib")
@@ -112,7 +112,7 @@ def main() -> None:
     warnings.filterwarnings("ignore")
     import ray
 
-    from evaluation.ray_backend import RayBackend
+    from sdc_evaluation.ray_backend import RayBackend
     from sdc_gym.ray import ray_session
 
     specs = [EpisodeSpec(agent, ENV, seed, {"laps": 1, "max_duration": 1000.0})

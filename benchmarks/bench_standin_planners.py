@@ -34,9 +34,9 @@ import gymnasium as gym
 import numpy as np
 
 import sdc_gym  # noqa: F401  (registers the ids)
-from agents.external import external_env_config
-from evaluation.episodes import EpisodeSpec
-from evaluation.runner import run_episodes
+from sdc_agents.external import external_env_config
+from sdc_evaluation.episodes import EpisodeSpec
+from sdc_evaluation.runner import run_episodes
 from sdc_gym.bridge import encode_telemetry, lockstep_config
 
 ROOT = Path(__file__).resolve().parents[1]

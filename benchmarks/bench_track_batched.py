@@ -92,7 +92,10 @@ def track_single(steps: int, seed: int = 0) -> dict[str, Any]:
 def reference_lap(seed: int) -> dict[str, Any]:
     import gymnasium as gym
 
-    from agents.registry import make_agent
+    try:
+        from sdc_agents.registry import make_agent
+    except ModuleNotFoundError:  # a reference tree from before issue 23's names
+        from agents.registry import make_agent  # the old import name
 
     env = gym.make(TRACK, config={"observe_light_states": True})
     agent = make_agent("dbw_ground_truth", env)

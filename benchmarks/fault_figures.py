@@ -24,7 +24,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from evaluation.episodes import EpisodeSpec, run_episode  # noqa: E402
+from sdc_evaluation.episodes import EpisodeSpec, run_episode  # noqa: E402
 from tests.processes import descendants, is_alive  # noqa: E402
 
 PLANNER = ROOT / "tests" / "planners" / "protocol_planner.py"

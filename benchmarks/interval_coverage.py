@@ -2,7 +2,7 @@
 
 Draws simulated runs of n seeds (with replacement) from the per-episode samples in
 ``tests/data/episode_samples.json`` and counts how often each interval covers the
-population's mean: Student's t (what the tables print, ``evaluation.statistics``) and the
+population's mean: Student's t (what the tables print, ``sdc_evaluation.statistics``) and the
 percentile bootstrap of the mean (what they printed before issue 23; computed here by hand,
 vectorized: the same as ``scipy.stats.bootstrap(method="percentile")``) and scipy's BCa
 bootstrap (the other candidate). Prints a Markdown table (docs/evaluation.md)::
@@ -21,7 +21,7 @@ import scipy.stats
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from evaluation.statistics import t_intervals
+from sdc_evaluation.statistics import t_intervals
 from tests.test_statistics import SIZES, populations
 
 RUNS = 4000  # the test's

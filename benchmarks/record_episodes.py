@@ -346,7 +346,7 @@ def make_agent(spec: tuple[str, Any], env: gym.Env, seed: int) -> Any:
     if kind == "fixed":
         return RandomActions(env.action_space, 0, fixed=argument)
     if kind == "agent":
-        from agents.registry import make_agent as registry_agent
+        from sdc_agents.registry import make_agent as registry_agent
 
         return registry_agent(argument, env)
     mph = 0.44704

@@ -3,8 +3,8 @@
     python benchmarks/single_env_rates.py TASK [--size N] [--seed S]
 
 Prints one JSON line ``{"task", "rate", "unit", "warm_s"}``. Only the public API that the
-pre-batch code had too is used (``gym.make``, ``agents.registry.make_agent``,
-``agents.lane_keeping.LaneKeepingDriver``), so ``bench_batched.py --reference TREE`` can run
+pre-batch code had too is used (``gym.make``, ``sdc_agents.registry.make_agent``,
+``sdc_agents.lane_keeping.LaneKeepingDriver``), so ``bench_batched.py --reference TREE`` can run
 the same measurement with another tree's ``.venv/bin/python`` (``TREE`` first on
 ``sys.path``, for its ``agents``) and print the ratio, interleaving the two trees.
 
@@ -56,7 +56,10 @@ def lane_keeping(steps: int, seed: int, cars: int | None = None) -> tuple[float,
     traffic cars (spread over 3 km above 50), or the default 12."""
     import gymnasium as gym
 
-    from agents.lane_keeping import LaneKeepingDriver
+    try:
+        from sdc_agents.lane_keeping import LaneKeepingDriver
+    except ModuleNotFoundError:  # a reference tree from before issue 23's names
+        from agents.lane_keeping import LaneKeepingDriver  # the old import name
 
     config = {"steps_per_action": 5, "terminate_on_collision": False, "laps": 100}
     if cars is not None:
@@ -82,7 +85,10 @@ def fsm_lap(laps: int, seed: int) -> tuple[float, float, str]:
     """Wall s per lap of the bold FSM at 3 frames per step (mean over ``laps`` seeds)."""
     import gymnasium as gym
 
-    from agents.registry import make_agent
+    try:
+        from sdc_agents.registry import make_agent
+    except ModuleNotFoundError:  # a reference tree from before issue 23's names
+        from agents.registry import make_agent  # the old import name
 
     warm = 0.0
     total = 0.0

@@ -24,7 +24,7 @@ import gymnasium as gym
 import numpy as np
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents.track.dbw_agent import dbw_agent
+from sdc_agents.track.dbw_agent import dbw_agent
 from sdc_gym.stack.track.follower import CONTINUOUS_FOLLOWER
 from sdc_gym.stack.track.rates import ORIGINAL_RATES, SEED_RATES, NodeRates
 from sdc_gym.units import KMH_TO_MPS

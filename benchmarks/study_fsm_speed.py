@@ -39,8 +39,8 @@ import gymnasium as gym
 import numpy as np
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents.highway.fsm import DrivingStyle, FSMParameters, Mode
-from agents.highway.fsm_agent import fsm_agent
+from sdc_agents.highway.fsm import DrivingStyle, FSMParameters, Mode
+from sdc_agents.highway.fsm_agent import fsm_agent
 from sdc_gym.units import MPH_TO_MPS
 
 CRUISE = FSMParameters().cruise_speed_mps

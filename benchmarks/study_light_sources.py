@@ -32,7 +32,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 import sdc_gym  # noqa: E402,F401  (registers the env ids)
-from agents.track.dbw_agent import dbw_agent, light_source_for  # noqa: E402
+from sdc_agents.track.dbw_agent import dbw_agent, light_source_for  # noqa: E402
 from sdc_gym.lights.traffic_lights import RED, UNKNOWN, YELLOW  # noqa: E402
 from tests.planners.capstone_twist_controllers import drive_episode  # noqa: E402
 

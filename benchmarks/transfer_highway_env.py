@@ -8,7 +8,7 @@ Runs ``--episodes`` episodes (seeds 0..N-1, the same for every agent) of highway
 defaults (20 cars, 5 Hz simulation, one meta-action per second, 30 s episodes), for:
 
 * the policy (``--policy kind:path``; default the committed DQN policy when the file
-  exists), through :mod:`agents.highway_env_adapter` (our world model, features, decision
+  exists), through :mod:`sdc_agents.highway_env_adapter` (our world model, features, decision
   executor and safety shield; decisions mapped onto highway-env's meta-actions);
 * highway-env's default agents: always ``IDLE`` (the action its docs and benchmarks use by
   default) and uniformly random meta-actions (seeded per episode);
@@ -40,14 +40,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from agents.highway_env_adapter import (
+from sdc_agents.highway_env_adapter import (
     IDLE,
     META_ACTION_NAMES,
     SLOWER,
     highway_env_policy_agent,
 )
-from agents.policy_agent import POLICY_KINDS
-from evaluation.files import atomic_write_text
+from sdc_agents.policy_agent import POLICY_KINDS
+from sdc_evaluation.files import atomic_write_text
 
 ENV_ID = "highway-fast-v0"
 LANES = 3

@@ -14,14 +14,14 @@ from typing import Any
 
 from rich.console import Console
 
-from evaluation import statistics, tables
-from evaluation.summary import AgentSamples, agent_samples, aggregate
-from evaluation.verdicts import Comparison, compare_all, power_note
+from sdc_evaluation import statistics, tables
+from sdc_evaluation.summary import AgentSamples, agent_samples, aggregate
+from sdc_evaluation.verdicts import Comparison, compare_all, power_note
 
 
 @dataclass(frozen=True)
 class Analysis:
-    """The per-agent rows (:func:`evaluation.summary.aggregate`), their samples and the
+    """The per-agent rows (:func:`sdc_evaluation.summary.aggregate`), their samples and the
     comparisons of agent pairs."""
 
     rows: list[dict[str, Any]]

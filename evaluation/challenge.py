@@ -9,7 +9,7 @@ challenge's rules (udacity/Bosch-Challenge README) read it three ways, per run:
   challenge's simulator stopped there; the env does with ``stop_at_incident``);
 * ``invalid: over <limit> s``: the time limit passed first (360 s in the challenge).
 
-Per agent the table (:func:`evaluation.tables.challenge_table`) gives the runs
+Per agent the table (:func:`sdc_evaluation.tables.challenge_table`) gives the runs
 finished, the mean challenge time over the finished runs with its 95 % bootstrap interval
 over seeds, and the best time; the verdict of each run is in ``episodes.csv``
 (``challenge_verdict``) and in the table's caption.
@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from evaluation import statistics
+from sdc_evaluation import statistics
 
 
 def is_timed(run: dict[str, Any]) -> bool:

@@ -1,7 +1,7 @@
 """Runs side by side: ``evaluate.py compare RUN_A RUN_B ...``.
 
 Each run folder's ``summary.json`` holds every episode; the episodes of all runs are
-analysed together (:func:`evaluation.analysis.analyse`), each agent of each run as its own
+analysed together (:func:`sdc_evaluation.analysis.analyse`), each agent of each run as its own
 group named ``run/agent``, with the same statistics as a single run. Verdicts compare the
 same agent across runs (what changed between them); when no agent is in two runs, every
 pair. Runs of different envs or configs are still compared, with a warning naming what
@@ -16,11 +16,11 @@ from typing import Any
 
 from rich.console import Console
 
-from evaluation import files, statistics
-from evaluation.analysis import Analysis, analyse, same_agent_pairs, terminal_output
-from evaluation.outputs import summary_plots
-from evaluation.report import REPORT_FILE, Report, write_report
-from evaluation.summary import unique_labels
+from sdc_evaluation import files, statistics
+from sdc_evaluation.analysis import Analysis, analyse, same_agent_pairs, terminal_output
+from sdc_evaluation.outputs import summary_plots
+from sdc_evaluation.report import REPORT_FILE, Report, write_report
+from sdc_evaluation.summary import unique_labels
 
 
 def run_names(folders: Sequence[Path]) -> list[str]:

@@ -1,11 +1,11 @@
 """One episode of one agent on a fresh env: what to run and what comes back.
 
 An episode is one (agent, seed) pair. :func:`run_episode` builds the env and the agent (by
-name, through :mod:`agents.registry`), drives it to the end and returns the env's
+name, through :mod:`sdc_agents.registry`), drives it to the end and returns the env's
 end-of-episode ``summary`` plus identification and wall time, with the per-step trace
 (:class:`EpisodeTrace`, for the plots) and the incident reports kept aside under their own
 keys (they go to their own files, not into the JSON rows). The runner
-(:mod:`evaluation.runner`) runs many of these, in this process or in workers.
+(:mod:`sdc_evaluation.runner`) runs many of these, in this process or in workers.
 """
 
 from __future__ import annotations
@@ -21,8 +21,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 import sdc_gym  # noqa: F401  (registers the env ids)
-from agents.registry import EpisodeAborted, make_agent
-from evaluation.incident_reports import DEFAULT_HISTORY_S, IncidentRecorder
+from sdc_agents.registry import EpisodeAborted, make_agent
+from sdc_evaluation.incident_reports import DEFAULT_HISTORY_S, IncidentRecorder
 
 
 @dataclass(frozen=True)
@@ -32,8 +32,8 @@ class EpisodeSpec:
     ``trace_points`` caps the per-step trace kept for plots (0: no trace); longer episodes
     keep every 2nd, 4th, ... step so that the trace stays within the cap.
     ``agent_options`` are options per agent kind (``{"external": {"cwd": ...}}``, see
-    ``agents.registry.make_agent``). ``incident_history`` is the seconds of history in each
-    incident report (0: no reports, see :mod:`evaluation.incident_reports`);
+    ``sdc_agents.registry.make_agent``). ``incident_history`` is the seconds of history in each
+    incident report (0: no reports, see :mod:`sdc_evaluation.incident_reports`);
     ``stop_at_incident`` ends the episode at its first incident (termination reason
     ``stop_at_incident``). ``name`` is the agent's name in the results (default: the spec
     ``agent``): one external planner run from two folders is two agents with one spec.
@@ -157,8 +157,8 @@ def run_episode(spec: EpisodeSpec, progress: ProgressCallback | None = None) -> 
 
     With ``spec.trace_points`` > 0 the result has a ``"trace"`` (:class:`EpisodeTrace`),
     which the result files leave out of the JSON and CSV (see
-    :func:`evaluation.files.write_traces`); likewise ``"incident_reports"``
-    (:func:`evaluation.files.write_incident_reports`).
+    :func:`sdc_evaluation.files.write_traces`); likewise ``"incident_reports"``
+    (:func:`sdc_evaluation.files.write_incident_reports`).
     ``progress`` is called every :data:`PROGRESS_EVERY_STEPS` env steps.
 
     Agents with ``wants_info = True`` are called as ``act(observation, info)`` (an

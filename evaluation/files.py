@@ -20,9 +20,9 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from evaluation import challenge
-from evaluation.episodes import REPORTS_KEY, TRACE_KEY, EpisodeTrace
-from evaluation.summary import has_stop_lines, incident_kinds
+from sdc_evaluation import challenge
+from sdc_evaluation.episodes import REPORTS_KEY, TRACE_KEY, EpisodeTrace
+from sdc_evaluation.summary import has_stop_lines, incident_kinds
 
 
 def atomic_write_text(path: Path, text: str) -> None:

@@ -5,7 +5,7 @@
   shorter last row is centred, never an empty panel) and titles are two short lines;
 * :func:`incident_strip_figure` (``incident_gallery/*.png``): one incident as a strip of
   top-down snapshots at -3, -2, -1 and 0 s, drawn from its report's recorded history
-  (:mod:`evaluation.incident_reports`): the road around the ego, the ego (blue) with its
+  (:mod:`sdc_evaluation.incident_reports`): the road around the ego, the ego (blue) with its
   trail, and every traffic car of the report (grey, heading from its velocity), in the
   ego's frame (driving to the right) so that the strip reads like a dash-cam from above.
   The ego is drawn at its size and place (:class:`EgoShape`: on the track its position is
@@ -26,7 +26,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Polygon
 from numpy.typing import NDArray
 
-from evaluation.plots import KIND_STYLE, new_figure, save_figure
+from sdc_evaluation.plots import KIND_STYLE, new_figure, save_figure
 from sdc_gym.metrics import INCIDENT_KINDS
 
 INCIDENT_MAP_FILE = "incident_map.png"

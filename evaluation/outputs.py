@@ -1,9 +1,9 @@
 """Everything an evaluation writes into its run folder, in one place.
 
-:func:`write_run` writes the result files (:mod:`evaluation.files`), the plots
-(:mod:`evaluation.plots`, :mod:`evaluation.profiles`, :mod:`evaluation.incident_plots`)
-and ``report.html`` (:mod:`evaluation.report`). :data:`OWNED_NAMES` lists every name it
-may write, which ``--overwrite`` clears first (:func:`evaluation.run_folders.prepare_output`).
+:func:`write_run` writes the result files (:mod:`sdc_evaluation.files`), the plots
+(:mod:`sdc_evaluation.plots`, :mod:`sdc_evaluation.profiles`, :mod:`sdc_evaluation.incident_plots`)
+and ``report.html`` (:mod:`sdc_evaluation.report`). :data:`OWNED_NAMES` lists every name it
+may write, which ``--overwrite`` clears first (:func:`sdc_evaluation.run_folders.prepare_output`).
 """
 
 from __future__ import annotations
@@ -13,13 +13,13 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation import files, incident_plots, plots, profiles
-from evaluation.analysis import Analysis
-from evaluation.episodes import REPORTS_KEY
-from evaluation.report import REPORT_FILE, Report, ReportImage, write_report
+from sdc_evaluation import files, incident_plots, plots, profiles
+from sdc_evaluation.analysis import Analysis
+from sdc_evaluation.episodes import REPORTS_KEY
+from sdc_evaluation.report import REPORT_FILE, Report, ReportImage, write_report
 
-PLANNER_LOGS = "planner_logs"  # written by external planners (agents.external.LOG_FOLDER)
-STACK_LOGS = "stack_logs"  # written by capstone stacks (agents.capstone.LOG_FOLDER)
+PLANNER_LOGS = "planner_logs"  # written by external planners (sdc_agents.external.LOG_FOLDER)
+STACK_LOGS = "stack_logs"  # written by capstone stacks (sdc_agents.capstone.LOG_FOLDER)
 OWNED_NAMES: tuple[str, ...] = (
     files.EPISODES_FILE, files.AGENTS_FILE, files.COMPARISONS_FILE, files.SUMMARY_FILE,
     files.TRACES_FILE, files.INCIDENTS_FILE, plots.MEANS_FILE, plots.INCIDENTS_FILE,

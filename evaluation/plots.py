@@ -4,9 +4,9 @@
   95 % intervals, every episode's value as a dot, the IQM as a diamond;
 * ``incidents.png`` (:func:`incidents_figure`): incidents by kind per agent, with the rate
   per 100 miles and its interval;
-* ``profiles.png`` and ``speed_time.png`` (:mod:`evaluation.profiles`): speed,
+* ``profiles.png`` and ``speed_time.png`` (:mod:`sdc_evaluation.profiles`): speed,
   acceleration and jerk over distance, and speed over time, for one seed;
-* ``incident_map.png`` and ``incident_gallery/`` (:mod:`evaluation.incident_plots`): the
+* ``incident_map.png`` and ``incident_gallery/`` (:mod:`sdc_evaluation.incident_plots`): the
   incidents on the loop, and a strip of top-down snapshots before each one.
 
 Figures are built with the object-oriented API on the Agg canvas (no ``pyplot``, no global
@@ -30,9 +30,9 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 from numpy.typing import NDArray
 
-from evaluation.files import atomic_write_bytes
-from evaluation.summary import AgentSamples
-from evaluation.tables import rate_with_interval
+from sdc_evaluation.files import atomic_write_bytes
+from sdc_evaluation.summary import AgentSamples
+from sdc_evaluation.tables import rate_with_interval
 from sdc_gym.metrics import INCIDENT_KINDS, IncidentRules
 from sdc_gym.units import MPS_TO_MPH
 

@@ -5,7 +5,7 @@
 * :func:`speed_time_figure` (``speed_time.png``): speed over time (min), where time spent
   standing shows as a flat line at zero.
 
-One line per agent, in cycling line styles (:data:`~evaluation.plots.LINE_STYLES`) and
+One line per agent, in cycling line styles (:data:`~sdc_evaluation.plots.LINE_STYLES`) and
 thinning widths, so that agents that drive identically still show as two lines; an agent
 whose trace equals an earlier one's is labelled ``"b (= a)"``. Where the trace has the
 light the car drives up to (the track loop: within 100 m of its stop line), a strip per
@@ -23,8 +23,8 @@ import numpy as np
 from matplotlib.figure import Figure
 from numpy.typing import NDArray
 
-from evaluation.episodes import TRACE_KEY, EpisodeTrace
-from evaluation.plots import (
+from sdc_evaluation.episodes import TRACE_KEY, EpisodeTrace
+from sdc_evaluation.plots import (
     DEFAULT_LIMITS,
     LINE_STYLES,
     PLOT_POINTS,

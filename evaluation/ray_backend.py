@@ -1,8 +1,8 @@
 """Episodes as Ray tasks: the same evaluation on a cluster (``evaluate.py --ray``).
 
-:class:`RayBackend` is a backend of :mod:`evaluation.runner`: every spec becomes one Ray
+:class:`RayBackend` is a backend of :mod:`sdc_evaluation.runner`: every spec becomes one Ray
 task (one CPU, the math libraries pinned to one thread as in the local pool) that runs
-:func:`evaluation.episodes.run_episode` where the cluster has room, on this machine or on
+:func:`sdc_evaluation.episodes.run_episode` where the cluster has room, on this machine or on
 any node. An episode is a function of its spec (seeded env, deterministic agents), so the
 results are those of the local pool, row for row; only the wall times differ.
 
@@ -26,8 +26,8 @@ import re
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from evaluation.episodes import EpisodeSpec, ProgressCallback, run_episode
-from evaluation.runner import (
+from sdc_evaluation.episodes import EpisodeSpec, ProgressCallback, run_episode
+from sdc_evaluation.runner import (
     WORKER_THREAD_VARIABLES,
     EpisodeEvents,
     failure_details,

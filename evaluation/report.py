@@ -1,7 +1,7 @@
 """``report.html``: one self-contained page per run, to open and to share.
 
 The page holds the run's settings, the key table and the other tables (the same text as
-in the terminal, :mod:`evaluation.tables`), the verdicts, every plot and the incident
+in the terminal, :mod:`sdc_evaluation.tables`), the verdicts, every plot and the incident
 gallery, the images embedded as base64 PNG ``data:`` URIs: no other file, no network.
 A few lines of script at the end count the images the browser decoded and write the
 count into the page (``<body data-images-decoded="N" data-images-total="M">``), which the
@@ -16,8 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from evaluation.files import atomic_write_text
-from evaluation.tables import VERDICT_HEADING, TableData
+from sdc_evaluation.files import atomic_write_text
+from sdc_evaluation.tables import VERDICT_HEADING, TableData
 
 REPORT_FILE = "report.html"
 

@@ -11,7 +11,7 @@ episode is reported with its reason and the others still run.
 * :class:`ProcessPoolBackend`: a local pool of worker processes
   (:class:`concurrent.futures.ProcessPoolExecutor`), each pinned to one math thread, each
   ending itself when the process that made the pool dies (even by ``kill -9``);
-* :class:`evaluation.ray_backend.RayBackend`: Ray tasks on a cluster (``--ray``).
+* :class:`sdc_evaluation.ray_backend.RayBackend`: Ray tasks on a cluster (``--ray``).
 
 Nothing else in the evaluation depends on where episodes run.
 """
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 from queue import Empty
 from typing import Any, Protocol
 
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.bridge.reaper import prctl
 from sdc_gym.units import METERS_PER_MILE
 

@@ -18,16 +18,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from evaluation.episodes import REPORTS_KEY, EpisodeSpec
-from evaluation.files import (
+from sdc_evaluation.episodes import REPORTS_KEY, EpisodeSpec
+from sdc_evaluation.files import (
     INCIDENTS_FILE,
     atomic_write_text,
     csv_text,
     write_incident_reports,
 )
-from evaluation.incident_reports import DEFAULT_HISTORY_S
-from evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
-from evaluation.tables import TableData
+from sdc_evaluation.incident_reports import DEFAULT_HISTORY_S
+from sdc_evaluation.runner import EpisodeBackend, EpisodeFailure, run_episodes
+from sdc_evaluation.tables import TableData
 from sdc_gym.config import ConfigError
 from sdc_gym.scenarios.replay import incident_scenario
 from sdc_gym.validation.scenarios import load_scenario

@@ -1,9 +1,9 @@
 """Per-agent rows of an evaluation: counts, extremes and interval estimates.
 
 :func:`aggregate` turns the episodes' results (one dict per episode, as
-:func:`evaluation.episodes.run_episode` returns them or ``summary.json`` holds them) into
+:func:`sdc_evaluation.episodes.run_episode` returns them or ``summary.json`` holds them) into
 one row per agent. Every mean comes with its 95 % interval (see
-:mod:`evaluation.statistics`), the episode being the unit:
+:mod:`sdc_evaluation.statistics`), the episode being the unit:
 
 * ``mean_speed_mph`` (with ``_ci``): the mean of the episodes' mean speeds (distance over
   time), and ``iqm_speed_mph`` (with ``_ci``) their interquartile mean;
@@ -22,8 +22,8 @@ from typing import Any
 
 import numpy as np
 
-from agents.registry import agent_label
-from evaluation import challenge, statistics
+from sdc_agents.registry import agent_label
+from sdc_evaluation import challenge, statistics
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.units import METERS_PER_MILE
 
@@ -67,7 +67,7 @@ def group_by_agent(episodes: Iterable[dict[str, Any]]) -> dict[str, list[dict[st
 
 
 def unique_labels(agents: Sequence[str]) -> dict[str, str]:
-    """Short labels (:func:`agents.registry.agent_label`) unless two would be equal: those
+    """Short labels (:func:`sdc_agents.registry.agent_label`) unless two would be equal: those
     keep their full spec."""
     labels = {agent: agent_label(agent) for agent in agents}
     counts: dict[str, int] = {}

@@ -6,12 +6,12 @@
 * :func:`track_table`: red lights, stops and tracking on the track loop;
 * :func:`wide_table`: every column in one table (``--wide``: about 200 columns);
 * :func:`endurance_table`: distance without incident of endurance episodes;
-* :func:`verdict_lines`: one line per agent pair (:mod:`evaluation.verdicts`).
+* :func:`verdict_lines`: one line per agent pair (:mod:`sdc_evaluation.verdicts`).
 
 Each returns a :class:`TableData` (title, headers, rows of text), which becomes a rich
 Table (:meth:`TableData.rich`: the ``SIMPLE_HEAD`` box without vertical rules, cells that
 fold instead of being cut with an ellipsis, so a narrow terminal gets every figure) or an
-HTML table in the report (:mod:`evaluation.report`), with the same text. Names (agents,
+HTML table in the report (:mod:`sdc_evaluation.report`), with the same text. Names (agents,
 scenarios) are never split: when a table would not fit the terminal with them whole, the
 longest are printed as keys ``(1)``, ``(2)``, ... with each full name under the table.
 """
@@ -28,7 +28,7 @@ import scipy.stats
 from rich import box
 from rich.table import Table
 
-from evaluation.verdicts import Comparison
+from sdc_evaluation.verdicts import Comparison
 from sdc_gym.units import METERS_PER_MILE
 
 SEED_RECORD_MILES = 276.53
@@ -281,7 +281,7 @@ VERDICT_HEADING = ("verdicts: difference of mean mph [95% CI]; P(improvement): t
 
 
 def verdict_lines(comparisons: Sequence[Comparison]) -> list[str]:
-    """One sentence per comparison (:attr:`evaluation.verdicts.Comparison.verdict`), with
+    """One sentence per comparison (:attr:`sdc_evaluation.verdicts.Comparison.verdict`), with
     its incident note when either agent had incidents."""
     return [comparison.verdict + (f"; {comparison.incident_note}"
                                   if comparison.incident_note else "")
@@ -330,7 +330,7 @@ def duration(seconds: float) -> str:
 
 
 def challenge_table(rows: list[dict[str, Any]]) -> TableData:
-    """Timed open-road runs (:mod:`evaluation.challenge`'s columns): per agent the runs
+    """Timed open-road runs (:mod:`sdc_evaluation.challenge`'s columns): per agent the runs
     finished, the mean challenge time [95 % CI], the best; every run's verdict in the
     caption (agent seed: verdict)."""
     lines = [f"{row['label']} seed {seed}: {text}" for row in rows

@@ -6,7 +6,7 @@ the same seeds, else Welch's), P(improvement) of A over B with its interval, the
 of one seed's difference, and their incident rates with the exact test of equal rates.
 Its :attr:`~Comparison.verdict` says "faster" only when the interval of the difference
 excludes 0, otherwise "no clear difference" and how many seeds that difference would need
-to be decided at 80 % power (:func:`evaluation.statistics.seeds_needed`):
+to be decided at 80 % power (:func:`sdc_evaluation.statistics.seeds_needed`):
 
     fsm_bold faster than lane_keeping by 5.34 mph [2.53, 8.15], P(improvement) 1.00
     fsm_bold vs fsm_conservative: no clear difference, +1.36 mph [-2.26, 4.98],
@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from evaluation import statistics
-from evaluation.summary import AgentSamples
+from sdc_evaluation import statistics
+from sdc_evaluation.summary import AgentSamples
 
 SIGNIFICANCE = 0.05
 """p-value under which two incident rates are called different."""

@@ -15,7 +15,7 @@ import dataclasses
 from collections.abc import Sequence
 from typing import Any
 
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.kernel_compiler import compile_progress
 
 WARM_UP_SECONDS = 1.0

@@ -14,7 +14,7 @@ from typing import Any
 
 import gymnasium as gym
 
-from evaluation.episodes import EpisodeSpec, ProgressCallback, run_episode
+from sdc_evaluation.episodes import EpisodeSpec, ProgressCallback, run_episode
 
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
 PROBE_CONFIG = {"highway": {"max_duration": 5.0}}

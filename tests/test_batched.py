@@ -19,7 +19,7 @@ import pytest
 from gymnasium.vector import AutoresetMode
 
 import sdc_gym  # noqa: F401
-from agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_gym.envs.highway_vector import (
     HighwayLoopBehaviorVectorEnv,
     HighwayLoopVectorEnv,

@@ -10,7 +10,7 @@ import yaml
 from gymnasium.utils.env_checker import check_env
 
 import sdc_gym  # noqa: F401
-from agents.registry import make_agent
+from sdc_agents.registry import make_agent
 from sdc_gym.config import ConfigError
 from sdc_gym.lights import RED
 

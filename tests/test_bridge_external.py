@@ -17,8 +17,8 @@ import gymnasium as gym
 import pytest
 
 import evaluate
-from agents.registry import AGENTS, make_agent, parse_agent_spec
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_agents.registry import AGENTS, make_agent, parse_agent_spec
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.bridge import (
     FAULT_REASONS,
     PlannerOptions,
@@ -327,7 +327,7 @@ def test_one_table_of_planners_in_their_own_folders_each_map_left_as_found(tmp_p
 def test_repeated_agents_are_named_apart_by_folder_or_refused(tmp_path, capsys):
     """A repeated external spec with a folder each runs once per folder, named
     ``SPEC@FOLDER``; repeats that would be one agent twice are refused, naming it."""
-    from agents.external import AgentRun, agent_runs
+    from sdc_agents.external import AgentRun, agent_runs
 
     assert agent_runs(["fsm_bold", "external:./p", "external:./p", "external:./q"],
                       ["a", "b", "c"]) == [
@@ -353,7 +353,7 @@ def test_repeated_agents_are_named_apart_by_folder_or_refused(tmp_path, capsys):
 
 
 def test_external_planners_drive_on_after_a_collision_unless_configured():
-    from agents.external import EXTERNAL_PATH_POINTS, external_env_config
+    from sdc_agents.external import EXTERNAL_PATH_POINTS, external_env_config
 
     assert external_env_config({}) == {"terminate_on_collision": False,
                                        "path_points": EXTERNAL_PATH_POINTS}

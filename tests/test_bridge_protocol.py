@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401  (registers the ids)
-from agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_gym.bridge import (
     EmptyPath,
     MalformedReply,

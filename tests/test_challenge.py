@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from evaluation import challenge
+from sdc_evaluation import challenge
 from sdc_gym.units import METERS_PER_MILE
 
 

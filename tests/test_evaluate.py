@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import evaluate
-from agents.registry import AGENTS
-from evaluation.episodes import TRACE_KEY
-from evaluation.files import load_traces
+from sdc_agents.registry import AGENTS
+from sdc_evaluation.episodes import TRACE_KEY
+from sdc_evaluation.files import load_traces
 
 CONFIGS = Path(__file__).resolve().parents[1] / "configs"
 OVAL = str(CONFIGS / "highway_oval.yaml")
@@ -127,8 +127,8 @@ def test_seed_options():
 
 
 def test_default_comparison_is_the_fsm_the_committed_policy_and_the_baseline():
-    from agents.policy_agent import resolve_model_path
-    from agents.registry import parse_agent_spec
+    from sdc_agents.policy_agent import resolve_model_path
+    from sdc_agents.registry import parse_agent_spec
 
     assert list(evaluate.DEFAULT_AGENTS) == ["fsm_conservative", "fsm_bold",
                                              evaluate.COMMITTED_POLICY, "lane_keeping"]
@@ -199,8 +199,8 @@ def _track_episode(agent: str, seed: int, stops: list[float], red: int) -> dict:
 
 
 def test_aggregate_reports_red_lights_and_stop_accuracy_on_a_track():
-    from evaluation.summary import aggregate
-    from evaluation.tables import incidents_table, track_table, wide_table
+    from sdc_evaluation.summary import aggregate
+    from sdc_evaluation.tables import incidents_table, track_table, wide_table
 
     episodes = [_track_episode("dbw", 0, [-1.5, -0.4], 0), _track_episode("dbw", 1, [0.3], 1)]
     (row,) = aggregate(episodes)
@@ -218,7 +218,7 @@ def test_aggregate_reports_red_lights_and_stop_accuracy_on_a_track():
 
 
 def test_highway_rows_have_no_track_columns():
-    from evaluation.summary import aggregate
+    from sdc_evaluation.summary import aggregate
 
     episode = _track_episode("lane_keeping", 0, [], 0)
     for key in ("stops", "red_light_violations", "max_overshoot", "rms_cross_track_error",

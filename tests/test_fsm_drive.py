@@ -5,8 +5,8 @@ from __future__ import annotations
 import gymnasium as gym
 
 import sdc_gym  # noqa: F401  (registers the envs)
-from agents.highway.fsm import DrivingStyle
-from agents.highway.fsm_agent import fsm_agent
+from sdc_agents.highway.fsm import DrivingStyle
+from sdc_agents.highway.fsm_agent import fsm_agent
 from tests.conftest import HIGHWAY_MAP_FILE
 
 

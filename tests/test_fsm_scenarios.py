@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from agents.highway.fsm import (
+from sdc_agents.highway.fsm import (
     MAX_SPEED_MPS,
     DrivingStyle,
     FSMBehavior,

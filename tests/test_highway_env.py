@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401
-from agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_gym.config import ConfigError
 from sdc_gym.units import MPS_TO_MPH
 

@@ -12,7 +12,7 @@ import pytest
 import yaml
 from highway_env.vehicle.behavior import IDMVehicle
 
-from agents.highway_env_adapter import (
+from sdc_agents.highway_env_adapter import (
     FASTER,
     IDLE,
     LANE_LEFT,
@@ -201,7 +201,7 @@ def test_factory_reads_the_training_config(tmp_path, monkeypatch):
         loaded.append((kind, path))
         return FixedPolicy(KEEP_CRUISE)
 
-    monkeypatch.setattr("agents.highway_env_adapter.load_model", fake_load)
+    monkeypatch.setattr("sdc_agents.highway_env_adapter.load_model", fake_load)
     model_path = tmp_path / "policy.zip"
     agent = highway_env_policy_agent("ppo", model_path)  # no YAML: the env's defaults
     assert agent.executor.shield is not None and agent.name == "ppo:policy"

@@ -432,7 +432,7 @@ def test_an_incident_report_is_validated_as_a_whole(report, message):
 def test_a_broken_report_in_incidents_json_names_the_file_and_index(tmp_path):
     import json
 
-    from evaluation.scenario_runs import scenario_cases
+    from sdc_evaluation.scenario_runs import scenario_cases
 
     path = tmp_path / "incidents.json"
     path.write_text(json.dumps([{"replay": 5}]))
@@ -515,7 +515,7 @@ def test_a_killed_runs_temporary_files_are_removed_when_the_folder_is_used_again
     import subprocess
     import sys
 
-    from evaluation.run_folders import remove_stale_temporaries
+    from sdc_evaluation.run_folders import remove_stale_temporaries
 
     ended = subprocess.Popen([sys.executable, "-c", "pass"])
     ended.wait()

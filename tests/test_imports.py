@@ -2,9 +2,10 @@
 
 The graph is read from the source (every ``import`` anywhere in a module, also those
 inside functions, which still close a circle when they run), over the packages
-``sdc_gym``, ``agents``, ``evaluation`` and ``training`` and the scripts ``evaluate.py``
-and ``train.py``. ``from package import name`` counts as importing ``package.name`` when that
-is a module, else ``package`` itself.
+``sdc_gym``, ``sdc_agents``, ``sdc_evaluation`` and ``sdc_training`` (the folders
+``sdc_gym/``, ``agents/``, ``evaluation/`` and ``training/``: pyproject's package-dir) and
+the scripts ``evaluate.py`` and ``train.py``. ``from package import name`` counts as
+importing ``package.name`` when that is a module, else ``package`` itself.
 """
 
 from __future__ import annotations
@@ -16,16 +17,23 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-PACKAGES = ("sdc_gym", "agents", "evaluation", "training")
-SCRIPTS = ("evaluate", "train")
+PACKAGES = {"sdc_gym": "sdc_gym", "sdc_agents": "agents", "sdc_evaluation": "evaluation",
+            "sdc_training": "training"}
+"""Import name -> folder."""
+SCRIPTS = {"sdc_gym_cli.evaluate": "evaluate.py", "sdc_gym_cli.train": "train.py"}
+"""The scripts, by their installed names (pyproject maps sdc_gym_cli onto the repo's root)."""
+COMMANDS = "commands"
+"""The layer of the scripts and of the packages' ``__main__`` modules that run them."""
+SDC_CONFIGS = "sdc_configs"  # the configs folder's resolver: imports nothing of the project
 
 
 @cache
 def module_files() -> dict[str, Path]:
-    modules = {name: ROOT / f"{name}.py" for name in SCRIPTS}
-    for package in PACKAGES:
-        for path in (ROOT / package).rglob("*.py"):
-            parts = list(path.relative_to(ROOT).with_suffix("").parts)
+    modules = {name: ROOT / file for name, file in SCRIPTS.items()}
+    modules[SDC_CONFIGS] = ROOT / "configs" / "__init__.py"
+    for package, folder in PACKAGES.items():
+        for path in (ROOT / folder).rglob("*.py"):
+            parts = [package, *path.relative_to(ROOT / folder).with_suffix("").parts]
             if parts[-1] == "__init__":
                 parts.pop()
             modules[".".join(parts)] = path
@@ -102,7 +110,8 @@ def test_the_finder_finds_a_constructed_circle():
 
 def test_no_import_circle_among_the_projects_modules():
     graph = import_graph()
-    assert "evaluation.runner" in graph and "agents.registry" in graph["evaluation.episodes"]
+    assert "sdc_evaluation.runner" in graph
+    assert "sdc_agents.registry" in graph["sdc_evaluation.episodes"]
     pruned = {}
     for name, targets in graph.items():
         package = name if _is_package(module_files()[name]) else name.rpartition(".")[0]
@@ -110,28 +119,35 @@ def test_no_import_circle_among_the_projects_modules():
     assert find_cycle(pruned) is None
 
 
+def layer(module: str) -> str:
+    """The package of ``module``, or :data:`COMMANDS` for the scripts and ``__main__``s."""
+    return COMMANDS if module in SCRIPTS or module.endswith(".__main__") else \
+        module.split(".")[0]
+
+
 def package_graph() -> dict[str, set[str]]:
     graph: dict[str, set[str]] = {}
     for name, targets in import_graph().items():
-        top = name.split(".")[0]
-        graph.setdefault(top, set()).update(t.split(".")[0] for t in targets
-                                            if t.split(".")[0] != top)
+        top = layer(name)
+        graph.setdefault(top, set()).update(layer(t) for t in targets if layer(t) != top)
     return graph
 
 
 def test_the_layers_point_one_way():
     graph = package_graph()
     assert graph["sdc_gym"] == set(), "sdc_gym imports nothing of agents or evaluation"
-    assert graph["agents"] == {"sdc_gym"}
-    assert graph["evaluation"] == {"agents", "sdc_gym"}
-    assert graph["training"] <= {"agents", "evaluation", "sdc_gym"}
-    assert not any("training" in targets for name, targets in graph.items()
-                   if name not in ("training", *SCRIPTS)), "only the scripts use training"
+    assert graph["sdc_agents"] == {"sdc_gym"}
+    assert graph["sdc_evaluation"] == {"sdc_agents", "sdc_gym"}
+    assert graph["sdc_training"] <= {"sdc_agents", "sdc_evaluation", "sdc_gym"}
+    assert graph[SDC_CONFIGS] == set()
+    assert graph[COMMANDS] >= {"sdc_agents", "sdc_evaluation", "sdc_training", SDC_CONFIGS}
+    assert not any("sdc_training" in targets for name, targets in graph.items()
+                   if name not in ("sdc_training", COMMANDS)), "only the scripts use training"
     assert find_cycle(graph) is None
 
 
 @pytest.mark.parametrize("module", sorted(m for m in module_files() if
-                                          m.startswith("evaluation")))
+                                          m.startswith("sdc_evaluation")))
 def test_evaluation_reaches_agents_only_through_the_registry(module):
-    reached = {t for t in import_graph()[module] if t.split(".")[0] == "agents"}
-    assert reached <= {"agents.registry"}, f"{module} imports {sorted(reached)}"
+    reached = {t for t in import_graph()[module] if t.split(".")[0] == "sdc_agents"}
+    assert reached <= {"sdc_agents.registry"}, f"{module} imports {sorted(reached)}"

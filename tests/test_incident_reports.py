@@ -9,8 +9,8 @@ import pytest
 import yaml
 
 import evaluate
-from evaluation.episodes import REPORTS_KEY
-from evaluation.incident_reports import IncidentRecorder
+from sdc_evaluation.episodes import REPORTS_KEY
+from sdc_evaluation.incident_reports import IncidentRecorder
 
 
 def observation(t: float) -> dict:
@@ -86,7 +86,7 @@ def test_history_zero_turns_reports_off_and_writes_no_report_file(tmp_path):
     """With reports on, incidents.json is always written (``[]`` without incidents, so a
     ``--scenario results/latest/incidents.json`` chain finds it); ``--incident-history 0``
     turns reports off: no file (an empty one would claim no incidents)."""
-    from evaluation.files import write_incident_reports
+    from sdc_evaluation.files import write_incident_reports
 
     assert write_incident_reports(tmp_path / "none.json", []) == 0
     assert (tmp_path / "none.json").read_text() == "[]\n"

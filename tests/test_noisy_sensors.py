@@ -20,7 +20,7 @@ import pytest
 import yaml
 
 import sdc_gym  # noqa: F401
-from agents.registry import make_agent
+from sdc_agents.registry import make_agent
 from sdc_gym.stack.highway.perception import Perception
 
 CONFIG = Path(__file__).resolve().parents[1] / "configs" / "highway_noisy_sensors.yaml"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401
-from agents.lane_keeping import LaneKeepingDriver
+from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_gym.road.builtin_highways import get_highway_map
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.stack.highway.perception import Perception, PerceptionParameters

@@ -6,16 +6,16 @@ import numpy as np
 import pytest
 from matplotlib.collections import PathCollection
 
-from evaluation.episodes import TRACE_KEY, EpisodeTrace, TraceRecorder
-from evaluation.incident_plots import incident_map_figure
-from evaluation.plots import Limits, incidents_figure, means_figure, minmax_indices
-from evaluation.profiles import (
+from sdc_evaluation.episodes import TRACE_KEY, EpisodeTrace, TraceRecorder
+from sdc_evaluation.incident_plots import incident_map_figure
+from sdc_evaluation.plots import Limits, incidents_figure, means_figure, minmax_indices
+from sdc_evaluation.profiles import (
     profile_figure,
     speed_time_figure,
     stop_line_distances,
     traces_for_seed,
 )
-from evaluation.summary import agent_samples, aggregate
+from sdc_evaluation.summary import agent_samples, aggregate
 from sdc_gym.metrics import IncidentRules
 from sdc_gym.road.builtin_highways import get_highway_map
 
@@ -247,7 +247,7 @@ def test_incident_map_has_no_empty_panel_and_titles_that_fit(oval, agents, rows)
 def strip_report(oval, seconds: float) -> dict:
     """The ego in the middle lane at 10 m/s, car 7 20 m ahead of it in the same lane and
     car 8 10 m behind in the left lane, sampled every 0.06 s for ``seconds``."""
-    from evaluation.incident_plots import SNAPSHOT_OFFSETS_S  # noqa: F401
+    from sdc_evaluation.incident_plots import SNAPSHOT_OFFSETS_S  # noqa: F401
 
     times = np.round(np.arange(0.0, seconds + 1e-9, 0.06), 4)
     s_ego = 75.0 + 10.0 * times  # on a straight (s 50-200 m)
@@ -273,7 +273,7 @@ def strip_report(oval, seconds: float) -> dict:
 def test_incident_strip_draws_the_cars_around_the_ego_at_minus_3_to_0_s(oval):
     from matplotlib.patches import Polygon
 
-    from evaluation.incident_plots import incident_strip_figure
+    from sdc_evaluation.incident_plots import incident_strip_figure
 
     figure = incident_strip_figure(strip_report(oval, 3.0), oval, "a")
     assert [ax.get_title() for ax in figure.axes] == ["-3 s", "-2 s", "-1 s", "0 s: collision"]
@@ -290,7 +290,7 @@ def test_incident_strip_draws_the_cars_around_the_ego_at_minus_3_to_0_s(oval):
 
 
 def test_gallery_writes_one_strip_per_incident_up_to_its_limit(tmp_path, oval):
-    from evaluation.incident_plots import write_gallery
+    from sdc_evaluation.incident_plots import write_gallery
 
     reports = [strip_report(oval, 3.0), {**strip_report(oval, 3.0), "kind": "lane"}]
     written = write_gallery(tmp_path, reports, oval, {"a": "agent:a"}, limit=1)

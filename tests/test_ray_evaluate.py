@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 import evaluate
-from evaluation.episodes import EpisodeSpec, run_episode
-from evaluation.runner import InProcessBackend, ProcessPoolBackend, run_episodes
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
+from sdc_evaluation.runner import InProcessBackend, ProcessPoolBackend, run_episodes
 from tests import ray_workers
 from tests.processes import all_gone
 from tests.processes import descendants as descendant_pids
@@ -119,7 +119,7 @@ def test_ray_run_writes_the_local_pools_rows_and_reports_a_raising_episode(clust
 
 
 def test_a_worker_that_dies_is_reported_and_the_other_episodes_finish(cluster):
-    from evaluation.ray_backend import RayBackend
+    from sdc_evaluation.ray_backend import RayBackend
 
     specs = [EpisodeSpec("lane_keeping", HIGHWAY, seed, SHORT) for seed in (0, 1, 2)]
     runs = run_episodes(specs, progress=False, backend=RayBackend(episode=ray_workers.die_on_seed))
@@ -152,7 +152,7 @@ class RecordingEvents:
 
 @pytest.mark.parametrize("backend", ["in_process", "pool", "ray"])
 def test_every_backend_reports_each_episode_once_with_progress(cluster, backend):
-    from evaluation.ray_backend import RayBackend
+    from sdc_evaluation.ray_backend import RayBackend
 
     specs = [EpisodeSpec("lane_keeping", HIGHWAY, 0, SHORT),
              EpisodeSpec(MISSING_MODEL, HIGHWAY, 3, SHORT)]

@@ -115,7 +115,7 @@ def greedy_behavior_episode(policy, config: dict, seed: int) -> dict:
 def test_rllib_policy_drives_the_path_level_env_as_in_its_behavior_env(ppo_run, tmp_path):
     """``evaluate.py --agents rllib:RUN/model`` on HighwayLoop-v0 (12 frames per step)
     repeats the behavior env's episode of the same policy exactly."""
-    from agents.rllib_policy import load_rllib_policy
+    from sdc_agents.rllib_policy import load_rllib_policy
 
     output, model, _ = ppo_run
     policy = load_rllib_policy(model)
@@ -137,13 +137,13 @@ def test_rllib_policy_drives_the_path_level_env_as_in_its_behavior_env(ppo_run, 
     assert episode["distance"] == expected["distance"] > 20.0
     assert episode["incidents"] == expected["incidents"]
     # A checkpoint in the run's checkpoints/ finds the run's config.yaml one folder up.
-    from agents.policy_agent import training_config
+    from sdc_agents.policy_agent import training_config
 
     assert training_config(output / "checkpoints" / "ppo_256_steps")[1] == SHORT
 
 
 def test_rllib_dqn_trains_on_the_track_behavior_env(cluster, tmp_path, capsys):
-    from agents.registry import make_agent
+    from sdc_agents.registry import make_agent
 
     output = tmp_path / "dqn"
     config = {"track": {"max_duration": 30.0}}
@@ -212,7 +212,7 @@ def test_rllib_trains_the_other_pairs_of_algorithm_and_behavior_env(cluster, tmp
                                                                     env_id, config, options):
     """The other two pairs (PPO on the track, DQN on the highway) train from the committed
     hyperparameter entries and give a policy that acts in the env's action space."""
-    from agents.rllib_policy import load_rllib_policy
+    from sdc_agents.rllib_policy import load_rllib_policy
 
     output = tmp_path / "run"
     model = train.main(["--framework", "rllib", "--algo", algo, "--config",
@@ -233,7 +233,7 @@ def test_rllib_trains_the_other_pairs_of_algorithm_and_behavior_env(cluster, tmp
 
 
 def test_tune_sweep_keeps_a_table_of_trials_and_the_best_checkpoint(cluster, tmp_path):
-    from agents.rllib_policy import load_rllib_policy
+    from sdc_agents.rllib_policy import load_rllib_policy
 
     sweep = tmp_path / "sweep.yaml"
     sweep.write_text(yaml.safe_dump({
@@ -337,8 +337,8 @@ def test_bad_rllib_settings_are_clear_errors_before_any_cluster(tmp_path, capsys
 
 
 def test_committed_rllib_hyperparameters_and_sweeps_are_valid():
-    from training.rllib_config import check_run_config
-    from training.tune_sweep import read_sweep
+    from sdc_training.rllib_config import check_run_config
+    from sdc_training.tune_sweep import read_sweep
 
     sweeps = sorted((ROOT / "configs" / "tune").glob("*.yaml"))
     assert sweeps
@@ -354,3 +354,23 @@ def test_committed_rllib_hyperparameters_and_sweeps_are_valid():
                 sweep = read_sweep(path)
                 if sweep.get("algo", "ppo") == algo:
                     check_run_config({**run, "tune": sweep})
+
+
+def test_an_rllib_agent_with_a_relative_path_as_the_docs_write_it(ppo_run, monkeypatch):
+    """``evaluate.py --agents rllib:runs/ppo_rllib/model`` (docs/ray.md, README): a path
+    relative to the working folder drives as the absolute one (RLlib alone reads a relative
+    path as a URI: ``ArrowInvalid: URI has empty scheme``)."""
+    from sdc_agents.registry import make_agent
+
+    output, model, _ = ppo_run
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"steps_per_action": 12})
+    absolute = make_agent(f"rllib:{model}", env)
+    monkeypatch.chdir(output.parent)
+    relative = make_agent(f"rllib:{Path(output.name) / model.name}", env)
+    observation, _ = env.reset(seed=4)
+    absolute.reset()
+    relative.reset()
+    for _ in range(3):
+        action = relative.act(observation)
+        np.testing.assert_array_equal(action, absolute.act(observation))
+        observation, *_ = env.step(action)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.registry import make_agent
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_agents.registry import make_agent
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.scenarios.replay import incident_scenario
 from tests.planners.no_reaction import drive
 

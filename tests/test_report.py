@@ -19,8 +19,8 @@ import yaml
 from matplotlib.image import imread
 
 import evaluate
-from evaluation.report import Report, ReportImage, report_html, write_report
-from evaluation.tables import TableData
+from sdc_evaluation.report import Report, ReportImage, report_html, write_report
+from sdc_evaluation.tables import TableData
 
 CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
 # Headless, and quiet on the network: without the background-networking flags chromium
@@ -54,7 +54,7 @@ def images_decoded(dom: str) -> tuple[int, int]:
 
 def test_the_browser_check_tells_a_broken_image(tmp_path):
     good, bad = tmp_path / "good.png", tmp_path / "bad.png"
-    from evaluation.plots import new_figure, save_figure
+    from sdc_evaluation.plots import new_figure, save_figure
 
     save_figure(new_figure(2.0, 1.0), good)
     bad.write_bytes(PNG_MAGIC + b"not an image")

@@ -8,8 +8,8 @@ import os
 import pytest
 
 import evaluate
-from evaluation import run_folders
-from evaluation.outputs import OWNED_NAMES
+from sdc_evaluation import run_folders
+from sdc_evaluation.outputs import OWNED_NAMES
 
 OVAL = str(evaluate.Path(evaluate.__file__).resolve().parent / "configs" / "highway_oval.yaml")
 QUICK = ["--agents", "lane_keeping", "--config", OVAL, "--no-plots", "--no-progress",

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from agents.registry import make_agent
+from sdc_agents.registry import make_agent
 from sdc_gym.config import ConfigError
 from sdc_gym.scenarios import library_path, library_scenarios, load_scenario
 from tests.planners.no_reaction import NoReaction, drive

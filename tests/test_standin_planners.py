@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.external import external_env_config
-from evaluation.episodes import EpisodeSpec, run_episode
+from sdc_agents.external import external_env_config
+from sdc_evaluation.episodes import EpisodeSpec, run_episode
 from sdc_gym.bridge import lockstep_config
 from tests.conftest import HIGHWAY_MAP_FILE
 from tests.planners.frenet_planner import SmoothMap, quintic, sample

@@ -1,4 +1,4 @@
-"""evaluation.statistics and evaluation.verdicts: known answers for every estimate."""
+"""sdc_evaluation.statistics and sdc_evaluation.verdicts: known answers for every estimate."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import pytest
 import scipy.stats
 from rliable import metrics as rliable_metrics
 
-from evaluation import statistics
-from evaluation.statistics import (
+from sdc_evaluation import statistics
+from sdc_evaluation.statistics import (
     Settings,
     iqm_interval,
     mean_difference,
@@ -21,9 +21,9 @@ from evaluation.statistics import (
     probability_of_improvement,
     rate_ratio_test,
 )
-from evaluation.summary import AgentSamples
-from evaluation.tables import FEW_SEEDS
-from evaluation.verdicts import compare
+from sdc_evaluation.summary import AgentSamples
+from sdc_evaluation.tables import FEW_SEEDS
+from sdc_evaluation.verdicts import compare
 
 FAST = Settings(resamples=2000)
 
@@ -209,7 +209,7 @@ SIZES = (3, 5, 10, 20)
 REPETITIONS = 4000  # simulated runs per (population, n): Monte Carlo s.e. of 0.95 is 0.0034
 COVERAGE_TOLERANCE = 0.03
 """How far the t interval's simulated coverage may be from the nominal 0.95 from
-:data:`evaluation.tables.FEW_SEEDS` (5) seeds on (measured: 0.923-0.953 at 5 seeds)."""
+:data:`sdc_evaluation.tables.FEW_SEEDS` (5) seeds on (measured: 0.923-0.953 at 5 seeds)."""
 FEW_SEEDS_COVERAGE = 0.87
 """The least coverage at 3 seeds (measured 0.891-0.957: the t interval is exact for normal
 episodes only, and some of these are skewed or heavy-tailed; the percentile bootstrap it

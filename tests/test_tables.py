@@ -6,9 +6,9 @@ import pytest
 from rich.console import Console
 
 import evaluate
-from evaluation.analysis import analyse, terminal_output
-from evaluation.statistics import Settings
-from evaluation.tables import wide_table, wrap_verdict
+from sdc_evaluation.analysis import analyse, terminal_output
+from sdc_evaluation.statistics import Settings
+from sdc_evaluation.tables import wide_table, wrap_verdict
 
 CONFIGS = evaluate.Path(evaluate.__file__).resolve().parent / "configs"
 KINDS = ("collision", "acceleration", "jerk", "speed", "lane", "off_road", "red_light")
@@ -111,7 +111,7 @@ def test_long_names_are_never_split_keys_stand_in_for_those_that_do_not_fit():
     """Agent names of external planners in their folders, scenario names: at 80 columns
     every name is printed whole, in a row or in the legend under the table with its key;
     the verdicts wrap at spaces, never inside a name."""
-    from evaluation.scenario_runs import verdict_table
+    from sdc_evaluation.scenario_runs import verdict_table
 
     long_a = "external:path_planning_with_a_long_name@build_release_a"
     long_b = "external:path_planning_with_a_long_name@build_release_b"

@@ -134,7 +134,7 @@ def test_same_step_autoreset_continuous_actions_manual_override_and_frames() -> 
 
 
 def test_dbw_level_batch_equals_single_envs_driven_by_the_stack() -> None:
-    from agents.registry import make_agent
+    from sdc_agents.registry import make_agent
 
     config = {"observe_light_states": True, "max_duration": 40.0,
               "obstacles": {"count": 3, "max_offset_d": 1.0}, "start_speed": 9.0}

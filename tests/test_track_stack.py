@@ -1,4 +1,4 @@
-"""The drive-by-wire reference stack (agents.track): each node against known answers, then
+"""The drive-by-wire reference stack (sdc_agents.track): each node against known answers, then
 the wired agent driving the site track in closed loop."""
 
 from __future__ import annotations
@@ -407,7 +407,7 @@ def test_rate_scheduler_fires_each_node_at_its_rate_over_one_second():
 
 # ------------------------------------------------------------------------------ closed loop
 def run_site(config: dict, *, laps: int = 1):
-    from agents.track.dbw_agent import dbw_agent
+    from sdc_agents.track.dbw_agent import dbw_agent
 
     env = gym.make("sdc_gym/TrackLoop-v0", config={
         "track": "site", "observe_light_states": True, "laps": laps, "max_duration": 120.0,

@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 import train
-from agents import checkpoints as ckpt
+from sdc_agents import checkpoints as ckpt
 
 ROOT = Path(__file__).resolve().parents[1]
 SHORT = {"highway": {"max_duration": 20.0}}

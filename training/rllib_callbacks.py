@@ -2,7 +2,7 @@
 
 It runs in the env runners (any process of the cluster): at the end of each episode the
 env's ``info["summary"]`` becomes the ``driving/`` scalars of
-:mod:`training.driving_metrics`, averaged by RLlib over the last
+:mod:`sdc_training.driving_metrics`, averaged by RLlib over the last
 :data:`EPISODES_WINDOW` episodes (as its ``episode_return_mean``), and so reach the
 results (``env_runners/driving/...``), TensorBoard and Tune.
 """
@@ -13,7 +13,7 @@ from typing import Any
 
 from ray.rllib.callbacks.callbacks import RLlibCallback
 
-from training.driving_metrics import driving_metrics
+from sdc_training.driving_metrics import driving_metrics
 
 EPISODES_WINDOW = 100
 """Episodes each driving metric is averaged over (RLlib's ``episode_return_mean`` too)."""

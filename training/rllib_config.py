@@ -162,9 +162,9 @@ def algorithm_config(config: dict[str, Any], hyper: dict[str, Any] | None = None
 
     ``hyper`` replaces ``config["hyperparams"]`` (a Tune sweep puts its search space there:
     the values may be Tune domains). The driving metrics are logged by
-    :class:`training.rllib_callbacks.DrivingMetricsCallback`.
+    :class:`sdc_training.rllib_callbacks.DrivingMetricsCallback`.
     """
-    from training.rllib_callbacks import DrivingMetricsCallback
+    from sdc_training.rllib_callbacks import DrivingMetricsCallback
 
     hyper = dict(config["hyperparams"] if hyper is None else hyper)
     model = dict(hyper.pop("model", None) or {})

@@ -7,7 +7,7 @@
     python evaluate.py --agents rllib:runs/ppo_rllib/model fsm_bold
 
 RLlib's new API stack (RLModule and Learner, EnvRunner actors), configured by
-:mod:`training.rllib_config` from the same run config YAML and
+:mod:`sdc_training.rllib_config` from the same run config YAML and
 ``configs/hyperparams/rllib_<algo>.yaml``. The envs are found in every worker through
 :func:`sdc_gym.ray.register_envs`. The run folder holds what an SB3 run's does, with
 checkpoint folders in place of ``.zip`` files (``Algorithm.save_to_path``, each written
@@ -44,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
-from agents import checkpoints as ckpt
+from sdc_agents import checkpoints as ckpt
 from sdc_gym.ray import LOCAL, ray_session
-from training.driving_metrics import PREFIX as DRIVING_PREFIX
-from training.rllib_config import algorithm_config
+from sdc_training.driving_metrics import PREFIX as DRIVING_PREFIX
+from sdc_training.rllib_config import algorithm_config
 
 MODEL_FOLDER = "model"
 BEST_FOLDER = "best_model"
@@ -91,7 +91,7 @@ def checkpoint_problem(path: Path) -> str | None:
 
 def resume_point(checkpoints: Path, algo: str, without_buffer: bool) -> ckpt.ResumePoint | None:
     """The newest checkpoint to resume from, as for an SB3 run
-    (:func:`agents.checkpoints.resume_point`): a torn one is skipped with a note; for DQN
+    (:func:`sdc_agents.checkpoints.resume_point`): a torn one is skipped with a note; for DQN
     its replay buffer must load, unless ``without_buffer`` (``--resume-without-buffer``).
     ``SystemExit`` when checkpoints exist but none can be resumed."""
     try:
@@ -212,7 +212,7 @@ class Evaluation:
         as ``best_model/`` when its mean reward is the best so far."""
         from stable_baselines3.common.evaluation import evaluate_policy
 
-        from agents.rllib_policy import load_rllib_policy
+        from sdc_agents.rllib_policy import load_rllib_policy
 
         candidate = save_checkpoint(algo, self.output / ".evaluated")
         rewards, lengths = evaluate_policy(load_rllib_policy(candidate), self.env,

@@ -49,7 +49,7 @@ from typing import Any
 
 import yaml
 
-from evaluation.files import atomic_write_text, csv_text
+from sdc_evaluation.files import atomic_write_text, csv_text
 from sdc_gym.config import ConfigError
 from sdc_gym.ray import LOCAL, ray_session
 from sdc_gym.validation.rules import (
@@ -62,9 +62,9 @@ from sdc_gym.validation.rules import (
     lookup,
 )
 from sdc_gym.validation.run_config import MAX_N_ENVS, MAX_TIMESTEPS
-from training.rllib_config import ALGORITHMS, algorithm_config, config_class, with_keys
-from training.rllib_trainer import BEST_FOLDER, STEPS_KEY, replace_folder
-from training.yaml_files import read_yaml
+from sdc_training.rllib_config import ALGORITHMS, algorithm_config, config_class, with_keys
+from sdc_training.rllib_trainer import BEST_FOLDER, STEPS_KEY, replace_folder
+from sdc_training.yaml_files import read_yaml
 
 SWEEP_KEYS = {"algo", "num_samples", "max_concurrent_trials", "metric", "mode", "timesteps",
               "n_envs", "checkpoint_frequency", "scheduler", "search_space"}

@@ -75,7 +75,7 @@ from __future__ import annotations
 
 import math
 
-from agents.highway.fsm_parameters import (
+from sdc_agents.highway.fsm_parameters import (
     ACTIVE,
     CALM,
     MAX_SPEED_MPS,

@@ -1,11 +1,11 @@
 """The seed's planner wired as a layered agent: the shared perception and motion layers of
-:mod:`sdc_gym.stack.highway` around the finite state machine of :mod:`agents.highway.fsm`."""
+:mod:`sdc_gym.stack.highway` around the finite state machine of :mod:`sdc_agents.highway.fsm`."""
 
 from __future__ import annotations
 
 import gymnasium as gym
 
-from agents.highway.fsm import DrivingStyle, FSMBehavior, FSMParameters
+from sdc_agents.highway.fsm import DrivingStyle, FSMBehavior, FSMParameters
 from sdc_gym.stack.highway.layered import LayeredHighwayAgent
 from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
 from sdc_gym.stack.highway.perception import Perception, PerceptionParameters

@@ -1,5 +1,5 @@
 """The seed FSM's parameters: the driving styles, the range profiles and
-:class:`FSMParameters` (every threshold of :mod:`agents.highway.fsm`, with where it comes
+:class:`FSMParameters` (every threshold of :mod:`sdc_agents.highway.fsm`, with where it comes
 from), apart from the state machine that reads them."""
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ def light_source_for(env: gym.Env, name: str) -> LightStateSource:
     """The light state source called ``name`` (:data:`LIGHT_SOURCES`) for ``env``.
 
     ``"ground_truth"`` needs the env config ``observe_light_states: True``; ``"cnn"`` and
-    ``"crop"`` (the committed classifiers of :mod:`agents.track.light_classifier`, torch)
+    ``"crop"`` (the committed classifiers of :mod:`sdc_agents.track.light_classifier`, torch)
     need the camera (``camera: {enabled: True, preset: "training"}``).
     """
     unwrapped = env.unwrapped
@@ -35,7 +35,7 @@ def light_source_for(env: gym.Env, name: str) -> LightStateSource:
             raise ValueError(f"light_source {name!r} needs the env config "
                              "{'camera': {'enabled': True, 'preset': 'training'}}")
         # torch is imported only for the classifier sources.
-        from agents.track.light_classifier import CNNLightSource, CropLightSource
+        from sdc_agents.track.light_classifier import CNNLightSource, CropLightSource
 
         if name == "cnn":
             return CNNLightSource()

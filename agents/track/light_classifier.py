@@ -3,10 +3,10 @@
 The detector of the drive-by-wire stack needs to know whether the light ahead is red, and
 whether it is yellow: the behavior layer stops for a yellow light when it can stop
 comfortably, which is what keeps it from meeting a red inside its braking distance. So the
-classifiers have three classes (:data:`~agents.track.light_dataset.CLASS_NAMES`): red,
+classifiers have three classes (:data:`~sdc_agents.track.light_dataset.CLASS_NAMES`): red,
 yellow and *other* (green, all lamps dark, no light in view; all mean "drive on"). Two
-approaches of the seed team, both trained by :mod:`agents.track.train_light_classifier`
-on frames of :mod:`agents.track.light_dataset`:
+approaches of the seed team, both trained by :mod:`sdc_agents.track.train_light_classifier`
+on frames of :mod:`sdc_agents.track.light_dataset`:
 
 Whole-image CNN (:class:`WholeImageCNN`, :class:`CNNLightSource`)
     Input: the 200 x 150 camera frame (the ``training`` camera preset). Four 3 x 3 stride-2
@@ -24,7 +24,7 @@ Crop classifier (:class:`CropCNN`, :class:`CropLightSource`)
     The light's 3-D position is known from the track map and the car's pose from the
     observation, so the pinhole model gives the housing's pixel bounding box
     (:func:`~sdc_gym.sensors.track_camera.light_bounding_box`). The box is resampled to
-    32 x 16 px (:func:`~agents.track.light_dataset.crop_light`) and classified by a tiny
+    32 x 16 px (:func:`~sdc_agents.track.light_dataset.crop_light`) and classified by a tiny
     CNN (two 3 x 3 conv + 2 x 2 max pool stages, one more conv, global max pool, linear).
     No light in view (none projects into the image facing the camera) means *other*
     without running the model. Works at any camera resolution, since the crop is resized.
@@ -65,7 +65,7 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from agents.track.light_dataset import (
+from sdc_agents.track.light_dataset import (
     CLASS_NAMES,
     CLASS_OTHER,
     CLASS_RED,
@@ -185,13 +185,13 @@ def load_classifier(path: str | os.PathLike[str], kind: str | None = None) -> nn
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"light classifier weights not found: {path} (train them with "
-                                f"python -m agents.track.train_light_classifier)")
+                                f"python -m sdc_agents.track.train_light_classifier)")
     payload: Any = torch.load(path, map_location="cpu", weights_only=True)
     if not isinstance(payload, Mapping) or payload.get("format") != FORMAT_VERSION:
         found = payload.get("format") if isinstance(payload, Mapping) else None
         raise ValueError(f"{path}: not a light classifier file of format {FORMAT_VERSION} "
                          f"(found format {found!r}; retrain with python -m "
-                         f"agents.track.train_light_classifier)")
+                         f"sdc_agents.track.train_light_classifier)")
     if list(payload.get("classes", ())) != list(CLASS_NAMES):
         raise ValueError(f"{path}: classes {payload.get('classes')!r}, expected "
                          f"{list(CLASS_NAMES)}")

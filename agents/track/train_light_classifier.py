@@ -2,11 +2,11 @@
 
 Usage::
 
-    python -m agents.track.train_light_classifier --model cnn --seed 0 --steps 1600 \\
+    python -m sdc_agents.track.train_light_classifier --model cnn --seed 0 --steps 1600 \\
         --output agents/track/models/light_cnn.pt \\
         --original-capstone-dir ../shared/data/udacity/capstone
 
-Training draws fresh frames every step from :class:`~agents.track.light_dataset.LightDataset`
+Training draws fresh frames every step from :class:`~sdc_agents.track.light_dataset.LightDataset`
 on the built-in ``default`` track with the 200 x 150 camera (seeded by ``--seed``; nothing is
 stored on disk): the whole frame for ``cnn``, the crop of the projected light for ``crop``
 (40 % red, 20 % yellow, 40 % other: green, dark or no light; the crop mix has no "no
@@ -16,10 +16,10 @@ matter). Whole frames are mirrored left-right with probability :data:`FLIP_PROBA
 Loss: cross-entropy on the three class logits; Adam with a cosine learning rate decay to
 zero.
 
-Afterwards the deployed pipeline (:class:`~agents.track.light_classifier.CNNLightSource` or
-:class:`~agents.track.light_classifier.CropLightSource`, i.e. including the "no light in
+Afterwards the deployed pipeline (:class:`~sdc_agents.track.light_classifier.CNNLightSource` or
+:class:`~sdc_agents.track.light_classifier.CropLightSource`, i.e. including the "no light in
 view" rule of the crop path) is evaluated on frames of the held-out seeds
-:data:`~agents.track.light_dataset.HELD_OUT_SEEDS` (full mix, no light included), optionally
+:data:`~sdc_agents.track.light_dataset.HELD_OUT_SEEDS` (full mix, no light included), optionally
 also on the original simulator track (``wp_yaw_const.csv`` and its light config). Reported:
 the red vs not-red accuracy (the issue's target), the 3-class accuracy, recall and
 precision of red and yellow, the confusion matrix and the errors by sample kind; the
@@ -52,7 +52,7 @@ import torch
 from numpy.typing import NDArray
 from torch import nn
 
-from agents.track.light_classifier import (
+from sdc_agents.track.light_classifier import (
     DEFAULT_CNN_PATH,
     DEFAULT_CROP_PATH,
     MODEL_KINDS,
@@ -63,7 +63,7 @@ from agents.track.light_classifier import (
     make_model,
     save_classifier,
 )
-from agents.track.light_dataset import (
+from sdc_agents.track.light_dataset import (
     CLASS_NAMES,
     CLASS_RED,
     CLASS_YELLOW,
@@ -211,7 +211,7 @@ class Evaluation:
     """How a pipeline classifies frames of some seeds.
 
     ``confusion[true class, predicted class]`` counts frames (classes in
-    :data:`~agents.track.light_dataset.CLASS_NAMES` order); ``errors_by_kind`` counts
+    :data:`~sdc_agents.track.light_dataset.CLASS_NAMES` order); ``errors_by_kind`` counts
     3-class errors and ``red_errors_by_kind`` red vs not-red errors by sample kind.
     """
 
@@ -361,7 +361,7 @@ def _mix_record(config: DatasetConfig) -> dict[str, Any]:
 
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="python -m agents.track.train_light_classifier",
+        prog="python -m sdc_agents.track.train_light_classifier",
         description="Train a red / yellow / other traffic light classifier on generated "
                     "frames.")
     parser.add_argument("--model", choices=MODEL_KINDS, required=True,
@@ -447,7 +447,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         "weights": output.name,
         "classes": list(CLASS_NAMES),
         "class_states": "red -> RED 0, yellow -> YELLOW 1, other -> UNKNOWN 4",
-        "command": "python -m agents.track.train_light_classifier " + shlex.join(argv),
+        "command": "python -m sdc_agents.track.train_light_classifier " + shlex.join(argv),
         "seed": args.seed,
         "steps": steps,
         "batch_size": batch_size,

@@ -1,11 +1,14 @@
 """Export any of our highway maps in the original ``highway_map.csv`` format.
 
-    python -m sdc_gym.bridge.export_map --map default --output my_planner/data/
+    python -m sdc_gym.bridge.export_map --map default --output ~/CarND-Path-Planning-Project/data/
     python -m sdc_gym.bridge.export_map --map oval --output /tmp/oval_map.csv
 
-``--map`` is a built-in map or a map file; ``--output`` a ``.csv`` file or a folder to
-write ``highway_map.csv`` into (the name the original's planners load, usually from
-``../data/`` relative to their working directory). See :mod:`sdc_gym.bridge.map_file`.
+``--map`` is a built-in map or a map file; ``--output`` (required: there is no default
+place, so nothing lands in the folder a command happens to run from) a ``.csv`` file or a
+folder to write ``highway_map.csv`` into, relative to the working folder: the planner's
+own data folder, from which the original's planners load it (usually ``../data/``
+relative to their build folder). The line printed names the file written, as an absolute
+path. See :mod:`sdc_gym.bridge.map_file`.
 """
 
 from __future__ import annotations
@@ -33,9 +36,9 @@ def main(argv: list[str] | None = None) -> Path:
     except MapFormatError as error:
         parser.error(str(error))
     path = export_highway_map(highway, args.output)
-    print(f"wrote {path}: {len(highway.waypoints)} waypoints, loop {highway.length:.1f} m "
-          f"along the smooth centre line ({highway.name}, {highway.lane_count} lanes of "
-          f"{highway.lane_width:g} m)")
+    print(f"wrote {path.absolute()}: {len(highway.waypoints)} waypoints, loop "
+          f"{highway.length:.1f} m along the smooth centre line ({highway.name}, "
+          f"{highway.lane_count} lanes of {highway.lane_width:g} m)")
     return path
 
 

@@ -189,7 +189,7 @@ def kind_in_snapshot(state: dict[str, Any], slot: int) -> str:
 
 
 REPORT_KEYS: Final = ("kind", "time", "replay")
-"""The keys an incident report must have to be replayed (evaluation.incident_reports
+"""The keys an incident report must have to be replayed (sdc_evaluation.incident_reports
 writes them, with ``agent``, ``seed``, ``env_id``, ``env_config`` and more)."""
 SNAPSHOT_KEYS: Final = ("map", "duration", "ego", "cars", "replay")
 """The keys of a report's ``replay`` snapshot (:func:`snapshot` writes them)."""

@@ -11,7 +11,7 @@ reads its map from a path relative to its working directory.
     python protocol_planner.py --port 4567 --map highway_map.csv              # lane keeping
     python protocol_planner.py --port {port} --brain straight --fault die --after 5
 
-Brains: ``lane_keeping`` (``agents.lane_keeping.LaneKeepingDriver`` fed from the
+Brains: ``lane_keeping`` (``sdc_agents.lane_keeping.LaneKeepingDriver`` fed from the
 telemetry) and ``straight`` (a few points ahead along the heading; no map, quick to
 start). ``--fault`` makes it misbehave after ``--after`` good replies: ``die`` (exit with
 code 3), ``malformed`` (broken JSON), ``empty`` (no points), ``nan`` (a ``NaN`` literal),
@@ -63,7 +63,7 @@ class TelemetryLaneKeeper:
     """``LaneKeepingDriver`` on the telemetry object (degrees and mph, as sent)."""
 
     def __init__(self, map_path: str, target_mph: float | None = None) -> None:
-        from agents.lane_keeping import LaneKeepingDriver, LaneKeepingParameters
+        from sdc_agents.lane_keeping import LaneKeepingDriver, LaneKeepingParameters
         from sdc_gym.road.highway_map import load_highway_map
 
         params = (LaneKeepingParameters() if target_mph is None

@@ -23,13 +23,13 @@ Light state sources (the :class:`LightStateSource` protocol)
     ``camera`` (H, W, 3) uint8). The light of interest is the one of the next stop line
     (light ``i`` belongs to stop line ``i``); the method returns its state as an ``int``
     code, UNKNOWN when no light is recognised. The committed classifiers
-    (:mod:`agents.track.light_classifier`) return RED, YELLOW or UNKNOWN: a red / not-red
+    (:mod:`sdc_agents.track.light_classifier`) return RED, YELLOW or UNKNOWN: a red / not-red
     classifier alone would leave the behavior layer unable to stop early for a yellow
     light, and it runs reds that turn red inside its braking distance.
 
     * :class:`GroundTruthLightSource` (here): the env's ``light_states`` observation
       (``observe_light_states: True`` in the env config).
-    * the whole-image CNN and the crop classifier (``agents.track.light_classifier*``):
+    * the whole-image CNN and the crop classifier (``sdc_agents.track.light_classifier*``):
       the camera image, the crop source projecting the next light's known 3D box.
 """
 
