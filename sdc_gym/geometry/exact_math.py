@@ -208,9 +208,9 @@ def exp(x: ArrayLike) -> FloatArray:
 
 
 def _unary(loop: Any, x: ArrayLike) -> FloatArray:
-    a = np.ascontiguousarray(x, dtype=np.float64)
+    a = np.asarray(x, dtype=np.float64)  # (not ascontiguousarray: it makes 0-d arrays 1-d)
     out = np.empty(a.size)
-    loop(a.ravel(), out)
+    loop(np.ascontiguousarray(a.ravel()), out)
     return out.reshape(a.shape)
 
 
