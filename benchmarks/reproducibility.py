@@ -153,7 +153,8 @@ def main() -> None:
                         help="names from --list (default: every runnable one)")
     parser.add_argument("--list", action="store_true", help="list the configurations")
     parser.add_argument("--lowest", action="store_true",
-                        help="only the oldest OpenBLAS core and numpy without AVX-512 (or generic numba)")
+                        help="the oldest OpenBLAS core, numpy without AVX-512 (or generic "
+                             "numba)")
     args = parser.parse_args()
     if args.lowest:
         args.configs = [name for name, _ in lowest_configurations()]
