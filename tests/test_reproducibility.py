@@ -6,7 +6,8 @@ order, the built-in roads' exact lengths (the same bits on every machine), filte
 equations. Across kernels: fingerprints of the roads, a Kalman track and short episodes
 are the same under the oldest OpenBLAS core and numpy without AVX-512 where the processor
 has it (processes of their own); ``benchmarks/reproducibility.py`` runs the recorded
-episodes under every configuration the processor can run. A scan of the source keeps the banned calls out.
+episodes under every configuration the processor can run. A scan of the source keeps the
+banned calls out.
 """
 
 from __future__ import annotations
