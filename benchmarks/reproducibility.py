@@ -135,7 +135,7 @@ def run_recorded_tests(env: dict[str, str]) -> tuple[bool, str, float]:
     """Run the recorded-episode tests under ``env``: (passed, pytest's summary, seconds)."""
     start = time.perf_counter()
     result = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-k", "recorded",
+        [sys.executable, "-m", "pytest", "-p", "no:cacheprovider", "-k", "recorded",
          *RECORDED_TESTS], cwd=ROOT, env={**os.environ, **env}, capture_output=True,
         text=True, check=False)
     lines = [line for line in result.stdout.splitlines() if line.strip()]
