@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.stats
 
 from sdc_evaluation import challenge
 from sdc_gym.units import METERS_PER_MILE
@@ -27,8 +28,9 @@ def test_verdicts_read_the_challenges_rules() -> None:
                                  _run(2, False, None, reason="max_duration")])
     assert columns["challenge_finished"] == 2 and columns["challenge_runs"] == 3
     assert columns["challenge_time"] == 205.0 and columns["challenge_best_time"] == 200.0
-    low, high = columns["challenge_time_ci"]
-    assert 200.0 <= low <= 205.0 <= high <= 210.0
+    # Student t over the finished runs (the project's intervals): 205 +- t(0.975, 1) * 5.
+    half = scipy.stats.t.ppf(0.975, 1) * 5.0
+    assert columns["challenge_time_ci"] == pytest.approx((205.0 - half, 205.0 + half))
 
 
 def test_lower_bound_is_the_time_optimal_launch_then_the_limit() -> None:

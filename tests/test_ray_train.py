@@ -304,7 +304,8 @@ def test_bad_rllib_settings_are_clear_errors_before_any_cluster(tmp_path, capsys
         train.main(["--framework", "rllib", "--algo", "sac", "--config", config,
                     "--output", str(tmp_path / "c")])
     with pytest.raises(SystemExit):
-        train.main(["--framework", "sb3", "--tune", "x.yaml", "--output", str(tmp_path)])
+        train.main(["--framework", "sb3", "--tune", "tune/highway_ppo", "--output",
+                    str(tmp_path)])
     assert "--tune sweeps with Ray Tune over RLlib runs" in capsys.readouterr().err
     bad = tmp_path / "bad_sweep.yaml"
     for content, message in [
