@@ -52,8 +52,6 @@ for n in (2, 3, 4, 7, 20, 64, 300):
     a = rng.random((n, n)); b = rng.random(n)
     a @ a; a @ b; b @ b
     np.linalg.solve(a + n * np.eye(n), b); scipy.linalg.solve(a + n * np.eye(n), b)
-import ctypes, numpy
-print(numpy.__version__)
 """
 
 

@@ -36,3 +36,20 @@ def partial_lengths(spline: Any, starts: FloatArray, widths: FloatArray) -> Floa
 def segment_lengths(spline: Any, knots: FloatArray) -> FloatArray:
     """Exact arc length of each spline segment between consecutive knots."""
     return partial_lengths(spline, knots[:-1], np.diff(knots))
+
+
+def points_at_arc_lengths(spline: Any, knots: FloatArray, lengths: FloatArray,
+                          cumulative: FloatArray, targets: FloatArray,
+                          iterations: int) -> FloatArray:
+    """The points of ``spline`` at arc lengths ``targets`` from its first knot: s(u)
+    inverted segment by segment with ``iterations`` Newton steps from the linear guess
+    (``lengths`` of the segments, ``cumulative`` their running sum from 0)."""
+    index = np.clip(np.searchsorted(cumulative, targets, side="right") - 1, 0,
+                    len(lengths) - 1)
+    u = knots[index] + (targets - cumulative[index]) * (np.diff(knots)[index] / lengths[index])
+    for _ in range(iterations):
+        lo = knots[index]
+        partial = partial_lengths(spline, lo, u - lo)
+        speed = np.hypot(*spline(u, 1).T)
+        u = u - (cumulative[index] + partial - targets) / speed
+    return spline(u)

@@ -126,17 +126,12 @@ def solve_2x2(matrix: ArrayLike, rhs: ArrayLike) -> tuple[float, float]:
     if a00 == 0.0:
         raise ValueError("solve_2x2: the matrix is singular")
     factor = a10 * (1.0 / a00)  # dgetf2 scales the column by the pivot's reciprocal
-    u11 = _fma_py(-factor, a01, a11)
+    u11 = fma(-factor, a01, a11)
     if u11 == 0.0:
         raise ValueError("solve_2x2: the matrix is singular")
     y1 = b1 - factor * b0  # forward substitution unfused, back substitution fused
     x1 = y1 / u11
-    return _fma_py(-a01, x1, b0) / a00, x1
-
-
-@njit(cache=True)
-def _fma_py(a: float, b: float, c: float) -> float:
-    return fma(a, b, c)
+    return fma(-a01, x1, b0) / a00, x1
 
 
 @njit(cache=True)

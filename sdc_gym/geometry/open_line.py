@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from sdc_gym.geometry.arc_length import partial_lengths, segment_lengths
+from sdc_gym.geometry.arc_length import points_at_arc_lengths, segment_lengths
 
 FloatArray = NDArray[np.float64]
 
@@ -73,16 +73,8 @@ def build_open_line(line: Any, points: FloatArray, resample_step: float,
     coarse_length = float(cum[-1])
     count = max(int(np.ceil(coarse_length / resample_step)), 8)
     targets = np.linspace(0.0, coarse_length, count + 1)  # both ends are knots
-    seg_index = np.clip(np.searchsorted(cum, targets, side="right") - 1, 0, len(seg) - 1)
-    u = coarse_knots[seg_index] + (targets - cum[seg_index]) * (
-        np.diff(coarse_knots)[seg_index] / seg[seg_index])
-    for _ in range(newton_iterations + 2):
-        lo = coarse_knots[seg_index]
-        h = u - lo
-        partial = partial_lengths(coarse, lo, h)
-        speed = np.hypot(*coarse(u, 1).T)
-        u = u - (cum[seg_index] + partial - targets) / speed
-    resampled = coarse(u)
+    resampled = points_at_arc_lengths(coarse, coarse_knots, seg, cum, targets,
+                                      newton_iterations + 2)
     spline = CubicSpline(targets, resampled, bc_type="natural")
     end_s = float(segment_lengths(spline, targets).sum())
     line.end_s = end_s

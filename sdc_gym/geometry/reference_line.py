@@ -34,7 +34,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.interpolate import CubicSpline
 from scipy.spatial import cKDTree
 
-from sdc_gym.geometry.arc_length import partial_lengths, segment_lengths
+from sdc_gym.geometry.arc_length import points_at_arc_lengths, segment_lengths
 from sdc_gym.geometry.exact_math import atan2, complex_abs, fused_product_sum, power
 from sdc_gym.geometry.open_line import build_open_line
 from sdc_gym.geometry.projection_kernel import LOCAL_SEARCH_TRUST_M as _LOCAL_SEARCH_TRUST_M
@@ -121,17 +121,8 @@ class ReferenceLine:
         # Resample at equal arc-length steps: invert s(u) segment by segment with Newton.
         count = max(int(np.ceil(coarse_length / resample_step)), 8)
         targets = np.linspace(0.0, coarse_length, count, endpoint=False)
-        seg_index = np.clip(np.searchsorted(cum, targets, side="right") - 1, 0, len(seg) - 1)
-        u = coarse_knots[seg_index] + (targets - cum[seg_index]) * (
-            np.diff(coarse_knots)[seg_index] / seg[seg_index]
-        )
-        for _ in range(_NEWTON_ITERATIONS + 2):
-            lo = coarse_knots[seg_index]
-            h = u - lo
-            partial = partial_lengths(coarse, lo, h)
-            speed = np.hypot(*coarse(u, 1).T)
-            u = u - (cum[seg_index] + partial - targets) / speed
-        resampled = coarse(u)
+        resampled = points_at_arc_lengths(coarse, coarse_knots, seg, cum, targets,
+                                          _NEWTON_ITERATIONS + 2)
 
         knots = np.append(targets, coarse_length)
         spline = CubicSpline(knots, np.vstack([resampled, resampled[:1]]), bc_type="periodic")
