@@ -31,22 +31,24 @@ $(CHROMIUM):
 
 # The capstone's ROS 1 end-to-end test (tests/test_capstone_ros.py): Debian's ROS 1
 # packages, installed here when missing and root; otherwise the command is printed and
-# that test is skipped.
-ROSCORE ?= /usr/bin/roscore
+# that test is skipped. The target is the last message definition the workspace needs
+# (ros-core and the -dev packages do not bring the .msg files: ros-std-msgs and
+# ros-geometry-msgs do; a machine with roscore but without them fails catkin_make).
+ROS_MESSAGES ?= /usr/share/geometry_msgs/msg/PoseStamped.msg
 ROS_PACKAGES := ros-core python3-rospy catkin ros-message-generation libstd-msgs-dev \
-	libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs
-$(ROSCORE):
+	libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs ros-std-msgs ros-geometry-msgs
+$(ROS_MESSAGES):
 	@if [ "$$(id -u)" = 0 ]; then \
 		apt-get -o DPkg::Lock::Timeout=600 update -qq && \
 		apt-get -o DPkg::Lock::Timeout=600 install -y -qq --no-install-recommends $(ROS_PACKAGES); \
 	else \
-		echo "$(ROSCORE) is missing (the ROS test will be skipped): sudo apt-get install --no-install-recommends $(ROS_PACKAGES)"; \
+		echo "$(ROS_MESSAGES) is missing (the ROS test will be skipped): sudo apt-get install --no-install-recommends $(ROS_PACKAGES)"; \
 	fi
 
 evaluate: $(STAMP)  ## the main job: evaluate the reference agent(s) on the default env
 	$(PY) evaluate.py
 
-test: $(STAMP) $(CHROMIUM) $(ROSCORE)  ## the test suite
+test: $(STAMP) $(CHROMIUM) $(ROS_MESSAGES)  ## the test suite
 	$(PY) -m pytest
 
 lint: $(STAMP)

@@ -29,13 +29,15 @@ ROS = Path(__file__).resolve().parent / "ros"
 CAPSTONE = UDACITY / "capstone"
 TRACK = str(CAPSTONE / "wp_yaw_const.csv")
 LIGHTS = str(CAPSTONE / "sim_traffic_light_config.yaml")
-DEBIAN_TOOLS = ("/usr/bin/roscore", "/usr/bin/catkin_make")
+DEBIAN_TOOLS = ("/usr/bin/roscore", "/usr/bin/catkin_make",
+                "/usr/share/std_msgs/msg/Header.msg", "/usr/share/geometry_msgs/msg/PoseStamped.msg")
 
 pytestmark = pytest.mark.skipif(
     not all(Path(tool).exists() for tool in DEBIAN_TOOLS),
     reason="ROS 1 from Debian is not installed (make test installs it as root: ros-core "
            "python3-rospy catkin ros-message-generation libstd-msgs-dev "
-           "libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs)")
+           "libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs ros-std-msgs "
+           "ros-geometry-msgs)")
 
 
 @pytest.fixture(scope="module")
