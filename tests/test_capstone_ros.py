@@ -30,7 +30,8 @@ CAPSTONE = UDACITY / "capstone"
 TRACK = str(CAPSTONE / "wp_yaw_const.csv")
 LIGHTS = str(CAPSTONE / "sim_traffic_light_config.yaml")
 DEBIAN_TOOLS = ("/usr/bin/roscore", "/usr/bin/catkin_make",
-                "/usr/share/std_msgs/msg/Header.msg", "/usr/share/geometry_msgs/msg/PoseStamped.msg")
+                "/usr/share/std_msgs/msg/Header.msg",
+                "/usr/share/geometry_msgs/msg/PoseStamped.msg")
 
 pytestmark = pytest.mark.skipif(
     not all(Path(tool).exists() for tool in DEBIAN_TOOLS),
