@@ -193,8 +193,8 @@ def track_policy_agent(env: gym.Env, kind: str, path: str | Path,
                              name=name or f"{kind}:{Path(path).stem}")
 
 
-def policy_agent(env: gym.Env, kind: str, path: str | Path) -> Any:
+def policy_agent(env: gym.Env, kind: str, path: str | Path, name: str | None = None) -> Any:
     """A policy agent for ``env``: the highway or the track kind, by the env."""
     if hasattr(env.unwrapped, "track"):
-        return track_policy_agent(env, kind, path)
-    return highway_policy_agent(env, kind, path)
+        return track_policy_agent(env, kind, path, name)
+    return highway_policy_agent(env, kind, path, name)

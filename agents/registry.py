@@ -15,6 +15,7 @@ from typing import Any, Final
 
 import gymnasium as gym
 
+from sdc_agents.committed_policies import committed_policy_agents
 from sdc_agents.highway.fsm import DrivingStyle
 from sdc_agents.highway.fsm_agent import fsm_agent
 from sdc_agents.lane_keeping import LaneKeepingDriver
@@ -96,6 +97,10 @@ HIGHWAY_PATH_ENVS: Final = ("sdc_gym/HighwayLoop-v0",)
 TRACK_ENVS: Final = ("sdc_gym/TrackLoop-v0",)
 AGENT_ENVS: Final[dict[str, tuple[str, ...]]] = {
     name: TRACK_ENVS if name.startswith("dbw_") else HIGHWAY_PATH_ENVS for name in AGENTS}
+# The committed policies by name (agents/*/policies/<name>.zip with <name>.yaml beside it).
+_POLICY_FACTORIES, _POLICY_ENVS = committed_policy_agents()
+AGENTS.update(_POLICY_FACTORIES)
+AGENT_ENVS.update({name: (env_id,) for name, env_id in _POLICY_ENVS.items()})
 """The envs each named agent drives: the highway agents send paths (HighwayLoop-v0), the
 drive-by-wire stacks throttle, brake and steering (TrackLoop-v0). The ``kind:argument``
 agents (external planners, trained policies) check their env when they are built."""
