@@ -1,0 +1,80 @@
+"""Model selection on validation seeds: every checkpoint of a run, one lap per seed, batched.
+
+    python benchmarks/validate_policies.py runs/dqn_a/checkpoints/*.zip runs/dqn_a/model.zip \
+        --algo dqn --seeds 2000 --episodes 20
+
+Runs each model deterministically on a batch of ``HighwayLoopBehavior-v0`` envs with the
+model's own training config (the run folder's ``config.yaml``), env ``i`` seeded
+``seed + i``, each for one lap (``highway.laps: 1``, up to ``--max-duration`` s), and prints
+per model the mean mph with its 95 % Student t interval, collisions and incidents. One
+batch and one forward pass per decision for all seeds make this about an order of magnitude
+faster than ``evaluate.py`` on the path-level env, which remains the judge: the policy agent
+there drives the same behavior env's layered stack, so a ranking made here carries over, but
+report final figures from ``evaluate.py``. Keep validation seeds (2000-) apart from the
+held-out seeds (1000-1039) and train.py's evaluation seeds (10000-).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+import sdc_gym  # noqa: F401
+from sdc_agents.policy_agent import load_model, training_config
+from sdc_evaluation.statistics import mean_interval
+from sdc_gym.envs.batch_vector import env_info
+
+
+def validate(model_path: Path, algo: str, seed: int, episodes: int,
+             max_duration: float) -> dict[str, float]:
+    """One lap per seed of ``model_path``; the batch's mean mph, interval and incidents."""
+    env_id, trained = training_config(model_path)
+    config = dict(trained)
+    config["highway"] = {**dict(config.get("highway") or {}), "laps": 1,
+                         "max_duration": max_duration}
+    envs = gym.make_vec(env_id or "sdc_gym/HighwayLoopBehavior-v0", num_envs=episodes,
+                        config=config)
+    model = load_model(algo, model_path)
+    observations, _ = envs.reset(seed=seed)
+    speeds = np.full(episodes, np.nan)
+    collisions = np.zeros(episodes, dtype=int)
+    incidents = np.zeros(episodes, dtype=int)
+    laps = np.zeros(episodes, dtype=bool)
+    done = np.zeros(episodes, dtype=bool)
+    while not done.all():
+        actions, _ = model.predict(observations, deterministic=True)
+        observations, _, terminated, truncated, infos = envs.step(actions)
+        for env in np.flatnonzero((terminated | truncated) & ~done):
+            summary = env_info(infos, env)["summary"]
+            speeds[env] = summary["mean_speed_mph"]
+            incidents[env] = summary["incident_total"]
+            collisions[env] = summary["incidents"].get("collision", 0)
+            laps[env] = summary["laps"] >= 1
+            done[env] = True
+    envs.close()
+    interval = mean_interval(speeds)
+    return {"mph": interval.value, "low": interval.low, "high": interval.high,
+            "collisions": int(collisions.sum()), "incidents": int(incidents.sum()),
+            "laps": int(laps.sum())}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("models", nargs="+", type=Path)
+    parser.add_argument("--algo", required=True, choices=("dqn", "ppo", "a2c", "sac"))
+    parser.add_argument("--seeds", type=int, default=2000, help="the first validation seed")
+    parser.add_argument("--episodes", type=int, default=20)
+    parser.add_argument("--max-duration", type=float, default=600.0)
+    args = parser.parse_args(argv)
+    print(f"{'model':<48} {'mph [95% CI]':>22} {'laps':>5} {'coll':>5} {'inc':>5}")
+    for model in args.models:
+        row = validate(model, args.algo, args.seeds, args.episodes, args.max_duration)
+        print(f"{model!s:<48} {row['mph']:6.2f} [{row['low']:.2f}, {row['high']:.2f}]"
+              f" {row['laps']:>5} {row['collisions']:>5} {row['incidents']:>5}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
