@@ -13,9 +13,9 @@ with ground-truth lights: ``dbw_ground_truth`` (the seed's: pure pursuit, PID 0.
 cross-track error RMS (over all seeds' steps: the RMS of the per-lap RMS) and max, mean
 lap time, the stops' distance before the line (front bumper; min..max), max acceleration
 and jerk (the env's 0.2 s block and 1 s window values), max lateral acceleration,
-red-light violations, other incidents, and the stack's compute per env step (wall time of ``agent.act`` only, in this
-run, side by side: the ratio against the seed's is what to read; absolute times move with
-the machine's load).
+red-light violations, other incidents, and the stack's compute per env step (wall time of
+``agent.act`` only, in this run, side by side: the ratio against the seed's is what to
+read; absolute times move with the machine's load).
 """
 
 from __future__ import annotations
