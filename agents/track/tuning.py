@@ -107,9 +107,11 @@ def summary_cost(summary: Mapping[str, Any]) -> float:
     return cost + abs(stops[0]["offset_m"] - STOP_GAP_TARGET_M) / 0.25
 
 
-def tuning_cost(gains: Mapping[str, float], seed: int = 0) -> float:
-    """The objective of ``gains`` (lower is better): one scripted episode."""
-    return summary_cost(episode_summary(gains, seed))
+def tuning_cost(gains: Mapping[str, float], seed: int = 0,
+                config: Mapping[str, Any] | None = None) -> float:
+    """The objective of ``gains`` (lower is better): one scripted episode (``config``,
+    default :data:`TUNING_CONFIG`)."""
+    return summary_cost(episode_summary(gains, seed, config))
 
 
 def twiddle(cost: Callable[[Mapping[str, float]], float], start: Mapping[str, float],
@@ -175,7 +177,7 @@ def optuna_tune(cost: Callable[[Mapping[str, float]], float],
 
 
 OPTUNA_RANGES: dict[str, tuple[float, float]] = {
-    "kp": (0.1, 3.0), "ki": (0.0, 1.0), "kd": (0.0, 0.5), "lookahead_min_m": (2.0, 10.0),
+    "kp": (0.1, 3.0), "ki": (0.0, 1.0), "kd": (0.0, 0.5), "lookahead_min_m": (1.0, 10.0),
     "lookahead_gain_s": (0.0, 3.0)}
 TWIDDLE_STEPS: dict[str, float] = {"kp": 0.2, "ki": 0.1, "kd": 0.05, "lookahead_min_m": 1.0,
                                    "lookahead_gain_s": 0.5}
