@@ -20,12 +20,8 @@ from sdc_agents.highway.fsm import DrivingStyle
 from sdc_agents.highway.fsm_agent import fsm_agent
 from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_agents.protocol import Agent, EpisodeAborted
-from sdc_agents.track.dbw_agent import (
-    NO_THROTTLE_LOWPASS,
-    STEERING_LOWPASS,
-    dbw_agent,
-    tuned_dbw_agent,
-)
+from sdc_agents.track.dbw_agent import NO_THROTTLE_LOWPASS, STEERING_LOWPASS, dbw_agent
+from sdc_agents.track.tuning import tuned_dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
 __all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label",

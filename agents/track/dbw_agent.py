@@ -91,12 +91,3 @@ def dbw_agent(
                              follower_kind=follower_kind, mpc_params=mpc_params,
                              controller=controller)
 
-
-def tuned_dbw_agent(env: gym.Env, tuner: str) -> DBWStackAgent:
-    """The stack with the committed gains of ``tuner`` (``"twiddle"`` or ``"optuna"``,
-    :mod:`sdc_agents.track.tuning`): speed PID and pure pursuit's look-ahead."""
-    from sdc_agents.track.tuning import tuned_parameters
-
-    controller, follower = tuned_parameters(tuner)
-    return dbw_agent(env, "ground_truth", follower=follower, controller=controller,
-                     name=f"dbw_{tuner}")

@@ -35,8 +35,10 @@ from typing import Any
 import gymnasium as gym
 import yaml
 
+from sdc_agents.track.dbw_agent import dbw_agent
 from sdc_gym.lights.traffic_lights import GREEN, RED
 from sdc_gym.stack.track.controllers import TwistControllerParameters
+from sdc_gym.stack.track.dbw_stack import DBWStackAgent
 from sdc_gym.stack.track.follower import CONTINUOUS_FOLLOWER, FollowerParameters
 
 GAIN_NAMES = ("kp", "ki", "kd", "lookahead_min_m", "lookahead_gain_s")
@@ -82,8 +84,6 @@ def stack_parameters(gains: Mapping[str, float]
 def episode_summary(gains: Mapping[str, float], seed: int = 0,
                     config: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """The summary of the episode :func:`tuning_cost` drives, with ``gains``."""
-    from sdc_agents.track.dbw_agent import dbw_agent
-
     controller, follower = stack_parameters(gains)
     env = gym.make("sdc_gym/TrackLoop-v0", config=dict(config or TUNING_CONFIG))
     agent = dbw_agent(env, "ground_truth", follower=follower, controller=controller,
@@ -194,6 +194,14 @@ def tuned_parameters(tuner: str, path: Path = TUNED_GAINS
     if not isinstance(gains, dict):
         raise ValueError(f"{path}: {tuner}.gains must be a mapping of {list(GAIN_NAMES)}")
     return stack_parameters(gains)
+
+
+def tuned_dbw_agent(env: gym.Env, tuner: str) -> DBWStackAgent:
+    """The stack with the committed gains of ``tuner`` (``"twiddle"`` or ``"optuna"``):
+    speed PID and pure pursuit's look-ahead, ground-truth lights."""
+    controller, follower = tuned_parameters(tuner)
+    return dbw_agent(env, "ground_truth", follower=follower, controller=controller,
+                     name=f"dbw_{tuner}")
 
 
 def main(argv: Sequence[str] | None = None) -> None:
