@@ -10,7 +10,7 @@ STAMP := $(VENV)/.installed
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0
-	$(PY) -m pip install --quiet -e ".[dev,ray,capstone,video]"
+	$(PY) -m pip install --quiet -e ".[dev,ray,capstone,video,tuning]"
 	touch $(STAMP)
 
 # The HTML report's test opens it in a real headless browser: Debian's chromium, installed

@@ -20,7 +20,8 @@ from sdc_agents.highway.fsm import DrivingStyle
 from sdc_agents.highway.fsm_agent import fsm_agent
 from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_agents.protocol import Agent, EpisodeAborted
-from sdc_agents.track.dbw_agent import dbw_agent
+from sdc_agents.track.dbw_agent import NO_THROTTLE_LOWPASS, STEERING_LOWPASS, dbw_agent
+from sdc_agents.track.tuning import tuned_dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
 __all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label",
@@ -29,6 +30,17 @@ __all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "ag
 
 
 AgentFactory = Callable[[gym.Env], Agent]
+
+_TRACK_VARIANTS: dict[str, AgentFactory] = {
+    "dbw_mpc": lambda env: dbw_agent(env, "ground_truth", follower_kind="mpc",
+                                     name="dbw_mpc"),
+    "dbw_steering_lowpass": lambda env: dbw_agent(
+        env, "ground_truth", controller=STEERING_LOWPASS, name="dbw_steering_lowpass"),
+    "dbw_no_throttle_lowpass": lambda env: dbw_agent(
+        env, "ground_truth", controller=NO_THROTTLE_LOWPASS, name="dbw_no_throttle_lowpass"),
+    **{f"dbw_{tuner}": (lambda env, _tuner=tuner: tuned_dbw_agent(env, _tuner))
+       for tuner in ("twiddle", "optuna")},
+}
 
 AGENTS: dict[str, AgentFactory] = {
     "lane_keeping": lambda env: LaneKeepingDriver(env.unwrapped.road),
@@ -49,6 +61,8 @@ AGENTS: dict[str, AgentFactory] = {
     "dbw_original_follower": lambda env: dbw_agent(env, "ground_truth",
                                                    follower=FollowerParameters(),
                                                    name="dbw_original_follower"),
+    # The seed team's further work (issue 29): MPC follower, low-pass options, tuned gains.
+    **_TRACK_VARIANTS,
 }
 
 

@@ -6,11 +6,17 @@ from __future__ import annotations
 import gymnasium as gym
 
 from sdc_gym.stack.track.behavior import TrackBehaviorPolicy
+from sdc_gym.stack.track.controllers import TwistControllerParameters
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
 from sdc_gym.stack.track.detector import GroundTruthLightSource, LightStateSource
 from sdc_gym.stack.track.follower import FollowerParameters
+from sdc_gym.stack.track.mpc import MPCParameters
 from sdc_gym.stack.track.rates import NodeRates
 
+STEERING_LOWPASS = TwistControllerParameters(steering_tau_s=0.1)
+"""The seed's "low pass filter for the steering command": 0.1 s, the throttle's constant."""
+NO_THROTTLE_LOWPASS = TwistControllerParameters(throttle_tau_s=0.0)
+"""The seed's "improve or remove the low pass filter": removed."""
 LIGHT_SOURCES = ("ground_truth", "cnn", "crop")
 """Light source names :func:`dbw_agent` builds itself (or pass any LightStateSource)."""
 
@@ -52,6 +58,9 @@ def dbw_agent(
     behavior: TrackBehaviorPolicy | None = None,
     follower: FollowerParameters | None = None,
     name: str | None = None,
+    follower_kind: str = "pure_pursuit",
+    mpc_params: MPCParameters | None = None,
+    controller: TwistControllerParameters | None = None,
 ) -> DBWStackAgent:
     """The reference stack for a ``TrackLoop-v0`` env: its track, car, speed limit, loop
     period and front bumper offset.
@@ -66,6 +75,9 @@ def dbw_agent(
             the fix capstone teams made to the original node; ``FollowerParameters()`` is
             the original's hold-until-0.2 m-off rule, which weaves about +-0.25 m).
         name: label (default ``dbw_<source>_<rates>``).
+        follower_kind: ``"pure_pursuit"`` or ``"mpc"``
+            (:data:`~sdc_gym.stack.track.dbw_stack.FOLLOWERS`); ``mpc_params`` its settings.
+        controller: the twist controller's settings (PID gains, low-pass filters).
     """
     if isinstance(light_source, str):
         source = light_source_for(env, light_source)
@@ -75,4 +87,7 @@ def dbw_agent(
         label = type(light_source).__name__
     rates_label = rates if isinstance(rates, str) else "custom"
     return dbw_stack_for_env(env, source, name=name or f"dbw_{label}_{rates_label}",
-                             rates=rates, behavior=behavior, follower=follower)
+                             rates=rates, behavior=behavior, follower=follower,
+                             follower_kind=follower_kind, mpc_params=mpc_params,
+                             controller=controller)
+

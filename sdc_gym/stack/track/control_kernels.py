@@ -98,6 +98,7 @@ class TwistParameters(NamedTuple):
     standstill_speed: float
     watchdog: float
     sample_time: float
+    steering_filter_gain: float  # 1: no steering low-pass (the seed's)
 
 
 class TwistState(NamedTuple):
@@ -113,12 +114,13 @@ class TwistState(NamedTuple):
     holding: BoolArray
     stale: BoolArray
     command: FloatArray  # (envs, 3): throttle, brake torque N m, steering-wheel angle rad
+    steering_filtered: FloatArray  # the steering low-pass's output (when on)
 
 
 def twist_state(envs: int) -> TwistState:
     z, b = np.zeros, (lambda: np.zeros(envs, dtype=bool))
     return TwistState(z(envs), z(envs), b(), z(envs), z(envs), b(), z(envs), b(), b(),
-                      z((envs, 3)))
+                      z((envs, 3)), z(envs))
 
 
 @kernel
@@ -128,6 +130,7 @@ def twist_reset(st: TwistState, env: int) -> None:
     st.last_error[env] = 0.0
     st.has_last_error[env] = False
     st.filtered[env] = 0.0
+    st.steering_filtered[env] = 0.0
     st.has_last_time[env] = False
     st.acceleration_command[env] = 0.0
     st.holding[env] = False
@@ -167,6 +170,9 @@ def twist_control(p: TwistParameters, st: TwistState, env: int, now: float,
     st.has_last_time[env] = True
     steering = yaw_steering(p.wheel_base, p.steer_ratio, p.min_speed, p.max_lat_accel,
                             p.max_steer_angle, target_linear, target_angular, current_speed)
+    if p.steering_filter_gain < 1.0:  # off (gain 1) leaves the seed's arithmetic untouched
+        steering = low_pass(p.steering_filter_gain, st.steering_filtered[env], steering)
+        st.steering_filtered[env] = steering
     holding = target_linear < p.stop_target and current_speed < p.standstill_speed
     if st.holding[env] and not holding:
         # Pulling away from a hold: a fresh PID and filter (no integral from braking).

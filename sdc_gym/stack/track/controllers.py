@@ -9,7 +9,8 @@ Longitudinal
     command* ``u`` in ``[decel_limit, accel_limit]`` (m/s^2; kp 0.8, ki 0.25, kd 0.1). Anti
     windup: the integral is kept only while the output is not clamped. A first-order
     :class:`LowPassFilter` ``y = a u + (1 - a) y_prev``, ``a = 1 / (tau / ts + 1)``,
-    smooths ``u``. Then, like the seed team:
+    smooths ``u`` (``throttle_tau_s``; 0 removes it, the seed's "improve or remove the
+    low pass filter"). Then, like the seed team:
 
     * ``y > 0``: throttle = ``y`` (the seed team feeds the acceleration command, limited
       to ``accel_limit`` = 1, straight to the throttle pedal), no brake;
@@ -30,7 +31,10 @@ Lateral (:class:`YawController`, the original's)
     ``lateral_limit_fraction`` = 95 % of the vehicle's limit: the speed changes within the
     step, so a limit commanded exactly ends a hair above it), then the steering-wheel angle of
     the kinematic bicycle ``steer_ratio * atan(wheel_base * w' / max(v_current,
-    min_speed))``, clamped to ``+-max_steer_angle``.
+    min_speed))``, clamped to ``+-max_steer_angle``. Optionally (``steering_tau_s`` > 0; 0,
+    the seed's, is off) the same first-order low-pass smooths the steering-wheel angle:
+    the seed's "low pass filter for the steering command if real tests show too much
+    lateral accelerations".
 
 Manual mode and watchdog (:class:`TwistController`)
     When ``dbw_enabled`` is false the human drives: the controller outputs nothing and
@@ -166,7 +170,9 @@ class TwistControllerParameters:
 
     Attributes:
         kp, ki, kd: PID gains on the speed error (m/s -> m/s^2).
-        throttle_tau_s: low-pass time constant on the acceleration command.
+        throttle_tau_s: low-pass time constant on the acceleration command (0: none).
+        steering_tau_s: low-pass time constant on the steering-wheel angle (0: none, the
+            seed's).
         yaw_min_speed_mps: the yaw controller's min_speed.
         stop_target_mps: a target speed below this asks for a stop.
         standstill_speed_mps: below this speed with a stop target, hold with the brake.
@@ -186,6 +192,7 @@ class TwistControllerParameters:
     hold_torque_margin: float = HOLD_TORQUE_MARGIN
     lateral_limit_fraction: float = LATERAL_LIMIT_FRACTION
     watchdog_s: float = WATCHDOG_S
+    steering_tau_s: float = 0.0
 
     def __post_init__(self) -> None:
         if not self.hold_torque_margin > 1.0:
@@ -193,8 +200,8 @@ class TwistControllerParameters:
                              f"torque equal to the creep only ties), got "
                              f"{self.hold_torque_margin!r}")
         for key in ("throttle_tau_s", "yaw_min_speed_mps", "stop_target_mps",
-                    "standstill_speed_mps"):
-            if not getattr(self, key) >= 0.0:
+                    "standstill_speed_mps", "steering_tau_s"):
+            if not (math.isfinite(getattr(self, key)) and getattr(self, key) >= 0.0):
                 raise ValueError(f"TwistControllerParameters: {key} must be >= 0, "
                                  f"got {getattr(self, key)!r}")
         if not 0.0 < self.lateral_limit_fraction <= 1.0:
@@ -251,7 +258,8 @@ class TwistController:
             float(p.lateral_limit_fraction * vehicle.max_lat_accel),
             float(vehicle.max_steer_angle), self.brake_torque_per_decel, self.hold_torque,
             float(vehicle.brake_deadband), float(p.stop_target_mps),
-            float(p.standstill_speed_mps), float(p.watchdog_s), self.sample_time_s)
+            float(p.standstill_speed_mps), float(p.watchdog_s), self.sample_time_s,
+            LowPassFilter(p.steering_tau_s, self.sample_time_s).a)
         self.state = twist_state(1)
         self._control = TypedCall(twist_control)
         self.reset()

@@ -12,6 +12,10 @@ stamped with the agent's clock (``tick * loop period``) so the watchdogs of the 
 and the twist controller see their ages: the pose and the speed arrive every tick, the
 light information at the detector's rate, the twist at the follower's.
 
+The follower is chosen by name (:data:`FOLLOWERS`, :func:`make_follower`): ``"pure_pursuit"``
+(the original's) or ``"mpc"`` (:class:`~sdc_gym.stack.track.mpc.MPCFollower`, the seed
+team's further work), both from the final waypoints to a twist command.
+
 The behavior layer is any :class:`~sdc_gym.stack.track.behavior.TrackBehaviorPolicy` (default the
 rule-based :class:`~sdc_gym.stack.track.behavior.StopAtRedLights`), asked at every updater tick.
 
@@ -59,6 +63,7 @@ from sdc_gym.stack.track.follower import (
     PurePursuit,
     TwistCommand,
 )
+from sdc_gym.stack.track.mpc import MPCFollower, MPCParameters, mpc_parameters_for
 from sdc_gym.stack.track.rates import NodeRates, RateScheduler, node_rates
 from sdc_gym.stack.track.waypoints import (
     FinalWaypoints,
@@ -78,6 +83,29 @@ DEFAULT_FRONT_OFFSET_M = 4.0
 """m from the rear axle to the front bumper when not given (the sim car: 3 m + 1 m)."""
 RAMP_DECEL_MPS2 = 1.5
 """m/s^2, the stop ramp's deceleration, at most half the vehicle's ``|decel_limit|``."""
+FOLLOWERS = ("pure_pursuit", "mpc")
+"""The waypoint followers by name (:func:`make_follower`)."""
+
+
+def make_follower(kind: str, controller: TwistController,
+                  follower_params: FollowerParameters | None = None,
+                  mpc_params: MPCParameters | None = None) -> PurePursuit | MPCFollower:
+    """The follower ``kind`` (:data:`FOLLOWERS`). The MPC's default limits are those the
+    twist ``controller`` is told: the curvature at the steering lock and its lateral
+    acceleration limit (its ``speed_from_next_waypoint`` is ``follower_params``')."""
+    if kind == "pure_pursuit":
+        if mpc_params is not None:
+            raise ValueError("make_follower: mpc_params given with follower 'pure_pursuit'")
+        return PurePursuit(follower_params)
+    if kind == "mpc":
+        if mpc_params is None:
+            c = controller.constants
+            next_speed = follower_params.speed_from_next_waypoint if follower_params else False
+            mpc_params = mpc_parameters_for(c.wheel_base, c.steer_ratio, c.max_steer_angle,
+                                            c.max_lat_accel,
+                                            speed_from_next_waypoint=next_speed)
+        return MPCFollower(mpc_params)
+    raise ValueError(f"unknown follower {kind!r}; choose one of {list(FOLLOWERS)}")
 
 
 class DBWStackAgent:
@@ -93,6 +121,8 @@ class DBWStackAgent:
         rates: node rates (a preset name or :class:`~sdc_gym.stack.track.rates.NodeRates`).
         behavior: the go/stop policy (default :class:`StopAtRedLights` for ``vehicle``).
         front_offset_m: rear axle to front bumper, m (for the stop margin).
+        follower_kind: the waypoint follower, a name of :data:`FOLLOWERS`.
+        mpc_params: the MPC's settings (``follower_kind="mpc"``; default from the car).
 
     Attributes after :meth:`act`: ``light_report``, ``decision``, ``final_waypoints``,
     ``twist``, ``command`` (the nodes' last outputs) and ``node_runs`` (runs per node).
@@ -114,6 +144,8 @@ class DBWStackAgent:
         follower_params: FollowerParameters | None = None,
         controller_params: TwistControllerParameters | None = None,
         detector_params: DetectorParameters | None = None,
+        follower_kind: str = "pure_pursuit",
+        mpc_params: MPCParameters | None = None,
     ) -> None:
         if not isinstance(light_source, LightStateSource):
             raise TypeError(f"light_source must have classify(observation) -> int, got "
@@ -139,9 +171,11 @@ class DBWStackAgent:
         self.behavior: TrackBehaviorPolicy = behavior or StopAtRedLights(StopAtRedParameters(
             max_decel_mps2=max_decel,
             comfortable_decel_mps2=min(StopAtRedParameters.comfortable_decel_mps2, max_decel)))
-        self.follower = PurePursuit(follower_params)
         self.controller = TwistController(vehicle, 1.0 / self.scheduler.rate("dbw"),
                                           controller_params)
+        self.follower_kind = follower_kind
+        self.follower = make_follower(follower_kind, self.controller, follower_params,
+                                      mpc_params)
         self.reset()
 
     def reset(self) -> None:
@@ -212,11 +246,15 @@ def dbw_stack_for_env(
     rates: str | NodeRates = "original",
     behavior: TrackBehaviorPolicy | None = None,
     follower: FollowerParameters | None = None,
+    follower_kind: str = "pure_pursuit",
+    mpc_params: MPCParameters | None = None,
+    controller: TwistControllerParameters | None = None,
 ) -> DBWStackAgent:
     """The stack for a ``TrackLoop-v0`` env (or its
     :class:`~sdc_gym.envs.track_setup.TrackSetup`): its track, car, speed limit, loop
     period and front bumper offset; ``follower`` defaults to
-    :data:`~sdc_gym.stack.track.follower.CONTINUOUS_FOLLOWER`."""
+    :data:`~sdc_gym.stack.track.follower.CONTINUOUS_FOLLOWER`; ``follower_kind`` names the
+    follower (:data:`FOLLOWERS`), ``controller`` the twist controller's settings."""
     unwrapped = getattr(env, "unwrapped", env)
     loop = PHYSICS_DT * int(getattr(unwrapped, "steps_per_action", 1))
     return DBWStackAgent(
@@ -224,4 +262,5 @@ def dbw_stack_for_env(
         speed_limit_mps=unwrapped.speed_limit, loop_period_s=loop, rates=rates,
         behavior=behavior,
         follower_params=CONTINUOUS_FOLLOWER if follower is None else follower,
+        follower_kind=follower_kind, mpc_params=mpc_params, controller_params=controller,
         front_offset_m=float(getattr(unwrapped, "front_offset", DEFAULT_FRONT_OFFSET_M)))

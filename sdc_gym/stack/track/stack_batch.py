@@ -36,6 +36,7 @@ from sdc_gym.stack.track.control_kernels import (
     twist_state,
 )
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent
+from sdc_gym.stack.track.follower import PurePursuit
 from sdc_gym.stack.track.node_kernels import (
     DetectorConstants,
     DetectorState,
@@ -110,7 +111,14 @@ class StackState(NamedTuple):
 
 def stack_constants(agent: DBWStackAgent, *, continuous: bool, speed_margin: float,
                     max_decel: float, comfortable_decel: float) -> StackConstants:
-    """The constants of ``agent``'s nodes (built by ``dbw_stack_for_env`` for the env)."""
+    """The constants of ``agent``'s nodes (built by ``dbw_stack_for_env`` for the env).
+    The batch runs pure pursuit only: the MPC follower solves a QP with OSQP at every
+    follower tick, which cannot run inside the compiled loop."""
+    if not isinstance(agent.follower, PurePursuit):
+        raise ValueError(f"the batched stack runs follower 'pure_pursuit' only, got "
+                         f"{getattr(agent, 'follower_kind', type(agent.follower).__name__)!r} "
+                         f"(the MPC solves a QP with OSQP per step, outside the compiled "
+                         f"batch; drive it with the single-env stack, DBWStackAgent)")
     scheduler = agent.scheduler
     return StackConstants(
         scheduler.runs.copy(), scheduler.per_ticks.copy(), float(scheduler.loop_period_s),
