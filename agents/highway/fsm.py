@@ -75,6 +75,7 @@ from __future__ import annotations
 
 import math
 
+from sdc_agents.highway.fsm_modes import OptionalModes, SpeedGoal
 from sdc_agents.highway.fsm_parameters import (
     ACTIVE,
     CALM,
@@ -111,6 +112,8 @@ class FSMBehavior:
     ) -> None:
         self._style = style
         self._params = params if params is not None else FSMParameters.for_style(style)
+        # The optional modes (Alert, Caution, Reverse, Hyper), when any is on.
+        self._extra = OptionalModes(self._params) if self._params.extra_modes else None
         self.reset()
 
     # ----------------------------------------------------------------- read-only state
@@ -124,7 +127,21 @@ class FSMBehavior:
 
     @property
     def mode(self) -> Mode:
+        """The mode in force: an optional mode while one holds, else the seed's."""
+        extra = self._extra
+        if extra is not None and extra.mode is not None:
+            return extra.mode
         return self._mode
+
+    @property
+    def base_mode(self) -> Mode:
+        """The seed's mode (Launch, Adapt, Advance, Cruise), under any optional one."""
+        return self._mode
+
+    @property
+    def modes_entered(self) -> frozenset[str]:
+        """The optional modes entered since the episode began (none without them)."""
+        return frozenset(self._extra.entered) if self._extra is not None else frozenset()
 
     @property
     def target_lane(self) -> int:
@@ -170,6 +187,8 @@ class FSMBehavior:
         self._change_began_in_advance = False
         self._origin_lane = -1
         self._aborted = False
+        if self._extra is not None:
+            self._extra.reset()
 
     def _enter(self, mode: Mode, now: float) -> None:
         self._mode = mode
@@ -251,6 +270,15 @@ class FSMBehavior:
                     lead_gap = lv.ahead_gap
                     lead_speed = lv.ahead_speed
 
+        extra = self._extra
+        special = None
+        brake_range = prof.brake_range_m
+        if extra is not None:
+            special = extra.update(world, mode, ahead, prof.mid_range_m, p.cruise_speed_mps)
+            if special is Mode.ALERT:
+                lead_gap, lead_speed = extra.alert_lead(world, lead_gap, lead_speed)
+                brake_range = max(brake_range, p.alert.brake_range_m)
+
         # Speed.
         vmax = p.max_speed_mps
         replan = aborting
@@ -268,14 +296,14 @@ class FSMBehavior:
         hard = False
         following = False  # the lead, not the mode, sets the speed goal
         k = p.approach_gain_per_s
-        if k > 0.0 and prof.brake_range_m <= lead_gap < math.inf and mode is not Mode.LAUNCH:
-            cap = self._range_speed(prof, lead_speed) + k * (lead_gap - prof.brake_range_m)
+        if k > 0.0 and brake_range <= lead_gap < math.inf and mode is not Mode.LAUNCH:
+            cap = self._range_speed(brake_range, lead_speed) + k * (lead_gap - brake_range)
             if cap < goal:
                 goal = cap
                 following = True
                 if goal < v and accel < p.normal_acceleration_mps2:
                     accel = p.normal_acceleration_mps2
-        if lead_gap < prof.brake_range_m:
+        if lead_gap < brake_range:
             fraction = p.braking_percent(lead_gap) * 0.01
             goal = fraction * lead_speed
             if fraction < p.hard_braking_fraction:
@@ -286,7 +314,7 @@ class FSMBehavior:
         if not hard and own.behind_gap < p.push_from_behind_m and mode is not Mode.LAUNCH:
             lead_v = lead_speed if lead_gap != math.inf else p.cruise_speed_mps
             push = 0.5 * (lead_v + own.behind_speed)
-            if lead_gap < prof.brake_range_m and push > lead_speed:
+            if lead_gap < brake_range and push > lead_speed:
                 push = lead_speed
             if push > vmax:
                 push = vmax
@@ -294,9 +322,24 @@ class FSMBehavior:
                 goal = push
                 accel = p.push_acceleration_mps2
                 replan = True
+        if special is not None:
+            assert extra is not None
+            speed = SpeedGoal(goal, accel, hard, replan)
+            extra.adjust_speed(world, speed, p.cruise_speed_mps, self._changing, target)
+            goal, accel, hard, replan = speed.goal, speed.accel, speed.hard, speed.replan
+            if goal > vmax:
+                goal = vmax
 
-        # Lane changes.
-        if (
+        # Lane changes (an optional mode's choice first, where it makes one).
+        choice = None
+        if special is not None and not self._changing:
+            assert extra is not None
+            choice = extra.lane_change(world, now - self._last_change_time, hard)
+        if choice is not None:
+            if choice >= 0:
+                replan = True
+                target = self._begin_change(choice, target, now, mode)
+        elif (
             mode is not Mode.LAUNCH
             and not hard
             and not self._changing
@@ -314,12 +357,7 @@ class FSMBehavior:
             if new < 0 and since > prof.strategic_cooldown_s:
                 new = self._strategic(lanes, world.lane_count, ego, ahead, v, prof)
             if new >= 0:
-                self._origin_lane = target
-                self._target_lane = target = new
-                self._last_change_time = now
-                self._changing = True
-                self._aborted = False
-                self._change_began_in_advance = mode is Mode.ADVANCE
+                target = self._begin_change(new, target, now, mode)
 
         return BehaviorDecision(
             target_lane=target,
@@ -327,8 +365,18 @@ class FSMBehavior:
             acceleration=accel,
             replan=replan,
             steering=mode is not Mode.LAUNCH,
-            mode=mode.value,
+            mode=(special or mode).value,
         )
+
+    def _begin_change(self, new: int, target: int, now: float, mode: Mode) -> int:
+        """Start a lane change from ``target`` (the lane driven to) to ``new``."""
+        self._origin_lane = target
+        self._target_lane = new
+        self._last_change_time = now
+        self._changing = True
+        self._aborted = False
+        self._change_began_in_advance = mode is Mode.ADVANCE
+        return new
 
     def _must_abort(self, world: WorldModel, target: int) -> bool:
         """A car is in (or entering) the target lane right beside the ego, while the ego
@@ -358,9 +406,9 @@ class FSMBehavior:
                 return True
         return False
 
-    def _range_speed(self, prof: RangeProfile, lead_speed: float) -> float:
+    def _range_speed(self, brake_range_m: float, lead_speed: float) -> float:
         """The braking curve's speed at the edge of its range, behind ``lead_speed``."""
-        return self._params.braking_percent(prof.brake_range_m) * 0.01 * lead_speed
+        return self._params.braking_percent(brake_range_m) * 0.01 * lead_speed
 
     # ------------------------------------------------------------------ lane rules
     def _safe_behind(self, lane: LaneView, v: float, least: float) -> bool:
