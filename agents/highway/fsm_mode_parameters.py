@@ -69,7 +69,8 @@ class ReverseRules:
     ``escape_ahead_m`` of room and a safe gap behind, in bends and during cool-downs
     too, at no more than ``escape_speed_mps`` until it has left the lane (still on a
     stopping profile, to ``escape_stop_gap_m`` behind the blockage, should the way out
-    close).
+    close). The goal runs ``a^2 / (2 motion_jerk_mps3)`` below the profile, where the
+    motion layer's jerk-bounded arrival at a goal (4 m/s^3) still brakes at ``a``.
     """
 
     enabled: bool = False
@@ -80,6 +81,7 @@ class ReverseRules:
     escape_ahead_m: float = 30.0
     escape_speed_mps: float = 5.0
     escape_stop_gap_m: float = 8.0
+    motion_jerk_mps3: float = 4.0
 
 
 @dataclass(frozen=True)

@@ -212,11 +212,17 @@ class OptionalModes:
             else:
                 goal = speed.goal
                 room = own.ahead_gap - r.stop_gap_m
-            stop = math.sqrt(2.0 * r.stop_decel_mps2 * room) if room > 0.0 else 0.0
+            # The motion layer eases into a goal at a bounded jerk J (a <= sqrt(2 J dv)):
+            # to brake at a the goal runs a^2 / (2 J) below the profile.
+            lag = r.stop_decel_mps2 ** 2 / (2.0 * r.motion_jerk_mps3)
+            stop = max(math.sqrt(2.0 * r.stop_decel_mps2 * room) - lag, 0.0) if room > 0.0 \
+                else 0.0
             speed.goal = min(goal, stop)
             speed.hard = False  # the stop is planned: lane changes stay allowed
             speed.accel = p.max_braking_mps2 if speed.goal < v else p.normal_acceleration_mps2
-            speed.replan = speed.replan or self._reverse_entered
+            # The queued second of path would carry the car on at its speed: replan while
+            # the stopping profile binds (as the seed's hard braking does).
+            speed.replan = speed.replan or self._reverse_entered or stop < v
         elif self.mode is Mode.HYPER:
             for t in self._faster_lanes(world, False):
                 lane = world.lanes[t]
