@@ -37,11 +37,12 @@ AGENTS: dict[str, AgentFactory] = {
     # With Kalman tracking of every car (for the env's sensor noise).
     "fsm_conservative_kf": lambda env: fsm_agent(env, DrivingStyle.CONSERVATIVE, tracking=True),
     "fsm_bold_kf": lambda env: fsm_agent(env, DrivingStyle.BOLD, tracking=True),
-    # The seed's further work (issue 29): Bold with one optional mode, from its packaged
-    # rule file (agents/highway/rules/<mode>.yaml); any rule file: "fsm:PATH".
+    # The seed's further work (issue 29): Bold with one optional mode or option, from its
+    # packaged rule file (agents/highway/rules/<name>.yaml); any rule file: "fsm:PATH".
     **{f"fsm_{rules}": (lambda env, _rules=rules: fsm_rules_agent(env, _rules,
                                                                   name=f"fsm_{_rules}"))
-       for rules in ("alert", "caution", "reverse", "hyper")},
+       for rules in ("alert", "caution", "reverse", "hyper", "straight_braking", "reroute",
+                     "easing")},
     # The track loop's drive-by-wire stack, by traffic light source: the env's ground truth
     # (config observe_light_states), or the committed classifiers on the camera image
     # (config camera: {enabled: true, preset: training}).

@@ -42,15 +42,18 @@ def test_the_packaged_style_files_are_the_built_in_styles(style):
     assert body == rules_text(rules.params, style, rules.ghosting)
 
 
-def test_the_packaged_mode_files_are_bold_with_one_mode():
-    assert {"conservative", "bold", "alert", "caution", "reverse", "hyper"} <= set(
-        packaged_rule_files())
+MODES = ("alert", "caution", "reverse", "hyper")
+OPTIONS = ("straight_braking", "reroute", "easing")
+
+
+def test_the_packaged_mode_and_option_files_are_bold_with_one_of_them():
+    assert set(packaged_rule_files()) == {"conservative", "bold", *MODES, *OPTIONS}
     bold = FSMParameters.for_style(DrivingStyle.BOLD)
-    for mode in ("alert", "caution", "reverse", "hyper"):
-        rules = load_rules(mode)
-        on = dataclasses.replace(getattr(bold, mode), enabled=True)
-        assert rules.params == dataclasses.replace(bold, **{mode: on})
-        assert rules.params.extra_modes and not bold.extra_modes
+    for name in (*MODES, *OPTIONS):
+        rules = load_rules(name)
+        on = dataclasses.replace(getattr(bold, name), enabled=True)
+        assert rules.params == dataclasses.replace(bold, **{name: on})
+        assert rules.params.extra_modes is (name in MODES) and not bold.extra_modes
 
 
 def paths(agent_name: str, seed: int, steps: int) -> list[np.ndarray]:

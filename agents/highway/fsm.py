@@ -76,6 +76,7 @@ from __future__ import annotations
 import math
 
 from sdc_agents.highway.fsm_modes import OptionalModes, SpeedGoal
+from sdc_agents.highway.fsm_options import FSMOptions
 from sdc_agents.highway.fsm_parameters import (
     ACTIVE,
     CALM,
@@ -114,6 +115,10 @@ class FSMBehavior:
         self._params = params if params is not None else FSMParameters.for_style(style)
         # The optional modes (Alert, Caution, Reverse, Hyper), when any is on.
         self._extra = OptionalModes(self._params) if self._params.extra_modes else None
+        # The options (straight-line braking, crash rerouting, easing), when any is on.
+        p = self._params
+        self._options = FSMOptions(p) if (p.straight_braking.enabled or p.reroute.enabled
+                                          or p.easing.enabled) else None
         self.reset()
 
     # ----------------------------------------------------------------- read-only state
@@ -189,6 +194,8 @@ class FSMBehavior:
         self._aborted = False
         if self._extra is not None:
             self._extra.reset()
+        if self._options is not None:
+            self._options.reset()
 
     def _enter(self, mode: Mode, now: float) -> None:
         self._mode = mode
@@ -329,12 +336,25 @@ class FSMBehavior:
             goal, accel, hard, replan = speed.goal, speed.accel, speed.hard, speed.replan
             if goal > vmax:
                 goal = vmax
+        options = self._options
+        if options is not None and p.straight_braking.enabled:
+            accel = options.braking(accel, hard, world)
 
-        # Lane changes (an optional mode's choice first, where it makes one).
+        # Lane changes (an optional mode's choice first, where it makes one; then crash
+        # rerouting's).
         choice = None
         if special is not None and not self._changing:
             assert extra is not None
             choice = extra.lane_change(world, now - self._last_change_time, hard)
+        closed: frozenset[int] = frozenset()
+        if options is not None and p.reroute.enabled:
+            closed = options.closed_lanes(world)
+            if (choice is None and ego in closed and not self._changing and not hard
+                    and mode is not Mode.LAUNCH
+                    and world.road_radius > p.single_change_radius_m):
+                choice = self._reroute(lanes, world.lane_count, ego, v, closed)
+                if choice < 0:
+                    choice = None  # no way out yet: the seed's rules as usual
         if choice is not None:
             if choice >= 0:
                 replan = True
@@ -356,8 +376,14 @@ class FSMBehavior:
                     replan = True
             if new < 0 and since > prof.strategic_cooldown_s:
                 new = self._strategic(lanes, world.lane_count, ego, ahead, v, prof)
+            if new in closed or (abs(new - ego) == 2 and (ego + new) // 2 in closed):
+                new = -1  # never into (or across) a lane a crash closes
             if new >= 0:
                 target = self._begin_change(new, target, now, mode)
+
+        target_d = None
+        if options is not None and p.easing.enabled:
+            target_d = options.target_d(world, target)
 
         return BehaviorDecision(
             target_lane=target,
@@ -366,7 +392,18 @@ class FSMBehavior:
             replan=replan,
             steering=mode is not Mode.LAUNCH,
             mode=(special or mode).value,
+            target_d=target_d,
         )
+
+    def _reroute(self, lanes: tuple[LaneView, ...], n: int, ego: int, v: float,
+                 closed: frozenset[int]) -> int:
+        """Crash rerouting's lane out of a closed ``ego`` lane: an adjacent open lane with
+        more room ahead and a safe gap behind (the most room first), or -1."""
+        for t in self._most_room_first(lanes, n, ego - 1, ego + 1):
+            if (t not in closed and lanes[t].ahead_gap > lanes[ego].ahead_gap
+                    and self._safe_behind(lanes[t], v, self._params.safety_gap_min_m)):
+                return t
+        return -1
 
     def _begin_change(self, new: int, target: int, now: float, mode: Mode) -> int:
         """Start a lane change from ``target`` (the lane driven to) to ``new``."""

@@ -102,3 +102,45 @@ class HyperRules:
     double_radius_m: float = 1000.0
     slow_by_mps: float = 2.0
     timeout_s: float = 20.0
+
+
+# ---------------------------------------------------------------------------- options
+# The seed's other further-work items, as options of the FSM (each off by default).
+
+
+@dataclass(frozen=True)
+class StraightBrakingRules:
+    """Straight-line maximum braking: under the seed's hard braking (the braking curve
+    below 80 %), brake at up to ``decel_limit_mps2`` less what the bend takes: the total
+    acceleration stays within the limit, ``sqrt(decel^2 + (v^2 / R)^2) <= limit``
+    (``R``: the road's circumradius ahead), never less than the seed's 8.42 m/s^2. The
+    seed's step to 8.42 m/s^2 is kept; beyond it the deceleration grows at ``jerk_mps3``
+    (the seed's "change in acceleration (+-10 m/s^3)")."""
+
+    enabled: bool = False
+    decel_limit_mps2: float = 9.5
+    jerk_mps3: float = 10.0
+
+
+@dataclass(frozen=True)
+class RerouteRules:
+    """Crash rerouting: a lane with a standing car or object (slower than
+    ``standing_mps``) within ``range_m`` ahead is closed by a crash. From a closed lane
+    the ego changes early (from any distance in range, the tactical cool-down
+    notwithstanding) to an adjacent open lane with more room and a safe gap behind, and
+    no lane change goes into a closed lane."""
+
+    enabled: bool = False
+    range_m: float = 200.0
+    standing_mps: float = 1.0
+
+
+@dataclass(frozen=True)
+class EasingRules:
+    """Quintic in-out easing of the steering target between lane splines: during a lane
+    change the motion layer aims at ``d(t) = d0 + (d1 - d0) e(u)``, ``u = t / T`` with
+    ``T = seconds_per_lane x`` the lanes crossed, ``e(u) = 16 u^5`` for ``u < 1/2`` and
+    ``1 - (2 - 2u)^5 / 2`` after, instead of at the target lane's spline at once."""
+
+    enabled: bool = False
+    seconds_per_lane: float = 3.0

@@ -11,8 +11,11 @@ from dataclasses import dataclass, field, replace
 from sdc_agents.highway.fsm_mode_parameters import (
     AlertRules,
     CautionRules,
+    EasingRules,
     HyperRules,
+    RerouteRules,
     ReverseRules,
+    StraightBrakingRules,
 )
 from sdc_gym.stack.highway.behavior import (
     BRAKE_CURVE_DECAY_PER_M,
@@ -170,6 +173,8 @@ class FSMParameters:
             than this (m/s, lateral) counts as entering the target lane.
         alert, caution, reverse, hyper: the optional modes (each off unless ``enabled``;
             see :mod:`sdc_agents.highway.fsm_mode_parameters`).
+        straight_braking, reroute, easing: the options straight-line maximum braking,
+            crash rerouting and quintic easing of the steering target (the same module).
     """
 
     calm: RangeProfile = CALM
@@ -214,6 +219,9 @@ class FSMParameters:
     caution: CautionRules = field(default_factory=CautionRules)
     reverse: ReverseRules = field(default_factory=ReverseRules)
     hyper: HyperRules = field(default_factory=HyperRules)
+    straight_braking: StraightBrakingRules = field(default_factory=StraightBrakingRules)
+    reroute: RerouteRules = field(default_factory=RerouteRules)
+    easing: EasingRules = field(default_factory=EasingRules)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_speed_mps <= SPEED_LIMIT_MPS:
