@@ -6,6 +6,7 @@ bend's share), crash rerouting's lane."""
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 
 import gymnasium as gym
@@ -93,7 +94,7 @@ def test_straight_line_max_braking_reaches_the_limit_at_the_jerk_limit():
     rates = braking_rates(bold_with(straight_braking=True), math.inf)
     assert rates[:2] == [MAX_BRAKING, pytest.approx(MAX_BRAKING + 0.6)]
     assert rates[2:] == [9.5, 9.5, 9.5]
-    assert all(b - a <= 0.6 + 1e-12 for a, b in zip(rates, rates[1:]))
+    assert all(b - a <= 0.6 + 1e-12 for a, b in itertools.pairwise(rates))
     # In a bend of 100 m at 20 m/s the lateral 4 m/s^2 leaves sqrt(9.5^2 - 4^2).
     rates = braking_rates(bold_with(straight_braking=True), 100.0)
     assert rates == [MAX_BRAKING] + [pytest.approx(math.sqrt(9.5**2 - 16.0))] * 4
