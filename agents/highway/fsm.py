@@ -30,6 +30,13 @@ Rules, in the order applied each cycle (all modes but Launch, whose lane is fixe
    when the ego lane is clear; move early to an open adjacent lane when a car shows up
    between ``mid_range_m`` and ``early_change_max_gap_m`` ahead.
 
+Beyond the seed's first version, its further work as options (each off by default, so the
+machine above is unchanged): the modes Alert, Caution, Reverse and Hyper on top of the four
+(:mod:`sdc_agents.highway.fsm_modes`; ``mode`` is the one in force, ``base_mode`` the
+seed's), straight-line maximum braking, crash rerouting and quintic easing of the steering
+target (:mod:`sdc_agents.highway.fsm_options`); all read from a rule file too
+(:mod:`sdc_agents.highway.fsm_rules`).
+
 Where this implementation goes beyond the seed, and why
     * **Following.** The seed drives at the mode's goal (cruise speed, or 1.05-1.10 x the
       lead in Advance) until the lead enters the braking range, where the goal drops to
