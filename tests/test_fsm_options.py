@@ -62,6 +62,18 @@ def test_an_eased_lane_change_aims_along_the_quintic_between_the_lane_centres():
                      10.0).target_d is None
 
 
+def test_an_aborted_eased_lane_change_goes_back_at_once():
+    """A car appears beside the ego in the target lane while the ego is still on its side
+    of the line: the FSM returns to its lane (the seed's abort) without easing back."""
+    fsm = bold_with(easing=True)
+    scene = Scene(ego_lane=1, ego_speed=20.0).add(1, 30.0, 15.0)
+    assert decide_at(fsm, scene, 10.0).target_lane == 0
+    scene.ego_d = 5.0  # 1 m toward lane 0, inside the 2 m abort window
+    scene.add(0, 1.0, 20.0)
+    back = decide_at(fsm, scene, 10.3)
+    assert back.target_lane == 1 and back.replan and back.target_d is None
+
+
 def test_the_motion_layer_steers_at_the_decisions_target_d():
     env = gym.make("sdc_gym/HighwayLoop-v0")
     observation, _ = env.reset(seed=0)

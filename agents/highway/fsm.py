@@ -243,6 +243,8 @@ class FSMBehavior:
             # now: the queued path would carry the car on toward them for another second.
             self._target_lane = target = self._origin_lane
             self._aborted = True
+            if self._options is not None and self._params.easing.enabled:
+                self._options.snap(target)
 
         own = lanes[ego]
         ahead = own.ahead_gap

@@ -91,6 +91,12 @@ class FSMOptions:
             self._lane = lane
         return self._eased(now)
 
+    def snap(self, lane: int) -> None:
+        """Aim at ``lane``'s centre at once (an aborted lane change goes back without
+        easing: the seed's return, as quickly as the steering allows)."""
+        self._lane = lane
+        self._ease = None
+
     def _eased(self, now: float) -> float | None:
         if self._ease is None:
             return None
