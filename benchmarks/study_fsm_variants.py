@@ -54,14 +54,24 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seeds", nargs="+", type=int, default=list(range(1000, 1040)))
     parser.add_argument("--workers", type=int, default=2)
     parser.add_argument("--output", type=Path, default=Path("results/study_fsm_variants"))
+    parser.add_argument("--tables-only", action="store_true",
+                        help="print the tables of the runs already in --output")
     args = parser.parse_args(argv)
     agents = [SEED_AGENT, *VARIANTS]
     laps, library = args.output / "laps", args.output / "library"
     common = ["--agents", *agents, "--workers", str(args.workers), "--overwrite",
               "--no-progress"]
-    evaluate.main([*common, "--seeds", *map(str, args.seeds), "--output", str(laps),
-                   "--no-plots"])
-    evaluate.main([*common, "--scenario", str(LIBRARY), "--output", str(library)])
+    if not args.tables_only:
+        evaluate.main([*common, "--seeds", *map(str, args.seeds), "--output", str(laps),
+                       "--no-plots"])
+        evaluate.main([*common, "--scenario", str(LIBRARY), "--output", str(library)])
+    # Episodes the same as the seed's (distance, time and max jerk to the last digit): the
+    # variant's rule never fired on that seed.
+    episodes = {(row["agent"], row["seed"]): (row["distance"], row["time"], row["max_jerk"])
+                for row in read_rows(laps / "episodes.csv")}
+    seeds = sorted({seed for _, seed in episodes}, key=int)
+    same = {agent: sum(episodes[agent, seed] == episodes[SEED_AGENT, seed] for seed in seeds)
+            for agent in agents}
 
     rows = {row["agent"]: row for row in read_rows(laps / "agents.csv")}
     pairs = {(row["a"], row["b"]): row for row in read_rows(laps / "comparisons.csv")}
@@ -71,11 +81,11 @@ def main(argv: list[str] | None = None) -> None:
                                                                   row["reason"])
     passed = {agent: sum(v[agent][0] for v in verdicts.values()) for agent in agents}
 
-    print(f"\nseeds {args.seeds[0]}-{args.seeds[-1]} ({len(args.seeds)}), one lap each; "
+    print(f"\nseeds {seeds[0]}-{seeds[-1]} ({len(seeds)}), one lap each; "
           f"library: {len(verdicts)} scenarios, seed 0\n")
     print("| agent | mean mph [95% CI] | vs fsm_bold mph [95% CI] | incidents / 100 mi "
-          "[95% CI] | max jerk m/s^3 | library passed |")
-    print("|---|---:|---:|---:|---:|---:|")
+          "[95% CI] | max jerk m/s^3 | laps as fsm_bold's | library passed |")
+    print("|---|---:|---:|---:|---:|---:|---:|")
     for agent in agents:
         row = rows[agent]
         if agent == SEED_AGENT:
@@ -85,15 +95,15 @@ def main(argv: list[str] | None = None) -> None:
             sign = -1.0
             if pair is None:
                 pair, sign = pairs[(agent, SEED_AGENT)], 1.0
-            value = sign * float(pair["speed_difference_mph"])
+            value = sign * float(pair["speed_difference_mph"]) + 0.0  # no "-0.00"
             low, high = pair["speed_difference_mph_ci_low"], pair["speed_difference_mph_ci_high"]
             difference = f"{value:+.2f}"
             if low and high:
-                ends = sorted((sign * float(low), sign * float(high)))
+                ends = sorted((sign * float(low) + 0.0, sign * float(high) + 0.0))
                 difference += f" [{ends[0]:+.2f}, {ends[1]:+.2f}]"
         print(f"| {agent} | {interval(row, 'mean_speed_mph')} | {difference} | "
               f"{interval(row, 'incidents_per_100_miles', 1)} | {float(row['max_jerk']):.2f} | "
-              f"{passed[agent]} / {len(verdicts)} |")
+              f"{same[agent]} / {len(seeds)} | {passed[agent]} / {len(verdicts)} |")
 
     print("\n| scenario | " + " | ".join(agents) + " |")
     print("|---|" + "---|" * len(agents))
