@@ -17,7 +17,7 @@ import gymnasium as gym
 
 from sdc_agents.committed_policies import committed_policy_agents
 from sdc_agents.highway.fsm import DrivingStyle
-from sdc_agents.highway.fsm_agent import fsm_agent
+from sdc_agents.highway.fsm_agent import fsm_agent, fsm_rules_agent
 from sdc_agents.lane_keeping import LaneKeepingDriver
 from sdc_agents.protocol import Agent, EpisodeAborted
 from sdc_agents.track.dbw_agent import NO_THROTTLE_LOWPASS, STEERING_LOWPASS, dbw_agent
@@ -49,6 +49,12 @@ AGENTS: dict[str, AgentFactory] = {
     # With Kalman tracking of every car (for the env's sensor noise).
     "fsm_conservative_kf": lambda env: fsm_agent(env, DrivingStyle.CONSERVATIVE, tracking=True),
     "fsm_bold_kf": lambda env: fsm_agent(env, DrivingStyle.BOLD, tracking=True),
+    # The seed's further work (issue 29): Bold with one optional mode or option, from its
+    # packaged rule file (agents/highway/rules/<name>.yaml); any rule file: "fsm:PATH".
+    **{f"fsm_{rules}": (lambda env, _rules=rules: fsm_rules_agent(env, _rules,
+                                                                  name=f"fsm_{_rules}"))
+       for rules in ("alert", "caution", "reverse", "hyper", "straight_braking", "reroute",
+                     "easing")},
     # The track loop's drive-by-wire stack, by traffic light source: the env's ground truth
     # (config observe_light_states), or the committed classifiers on the camera image
     # (config camera: {enabled: true, preset: training}).
@@ -89,6 +95,9 @@ def _policy_agent(kind: str, argument: str, env: gym.Env) -> Agent:
 
 
 AGENT_KINDS: dict[str, AgentKindFactory] = {
+    # The FSM with the rules of a YAML rule file, a path or a packaged one's name:
+    # "fsm:my_rules.yaml", "fsm:bold" (agents/highway/fsm_rules.py).
+    "fsm": lambda argument, env, **options: fsm_rules_agent(env, argument, **options),
     # A planner written for the original highway simulator, run per episode and driven
     # through its wire protocol: "external:./path_planning" (agents/external.py).
     "external": _external_agent,
@@ -125,6 +134,13 @@ def check_agent_env(spec: str, env_id: str) -> None:
     cannot drive ``env_id`` (``--agents dbw_ground_truth`` on the highway raised an
     AttributeError in every episode)."""
     kind, name = parse_agent_spec(spec)
+    if kind == "fsm":  # a rule file: read and checked before any episode starts
+        from sdc_agents.highway.fsm_rules import load_rules
+
+        load_rules(name)
+        if env_id not in HIGHWAY_PATH_ENVS:
+            raise ValueError(f"agent {spec!r} (the FSM) drives {', '.join(HIGHWAY_PATH_ENVS)}"
+                             f", not {env_id}")
     if kind is None and env_id not in AGENT_ENVS[name]:
         fits = sorted(other for other, envs in AGENT_ENVS.items() if env_id in envs)
         raise ValueError(f"agent {name!r} drives {', '.join(AGENT_ENVS[name])}, not {env_id}"

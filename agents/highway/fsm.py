@@ -30,6 +30,13 @@ Rules, in the order applied each cycle (all modes but Launch, whose lane is fixe
    when the ego lane is clear; move early to an open adjacent lane when a car shows up
    between ``mid_range_m`` and ``early_change_max_gap_m`` ahead.
 
+Beyond the seed's first version, its further work as options (each off by default, so the
+machine above is unchanged): the modes Alert, Caution, Reverse and Hyper on top of the four
+(:mod:`sdc_agents.highway.fsm_modes`; ``mode`` is the one in force, ``base_mode`` the
+seed's), straight-line maximum braking, crash rerouting and quintic easing of the steering
+target (:mod:`sdc_agents.highway.fsm_options`); all read from a rule file too
+(:mod:`sdc_agents.highway.fsm_rules`).
+
 Where this implementation goes beyond the seed, and why
     * **Following.** The seed drives at the mode's goal (cruise speed, or 1.05-1.10 x the
       lead in Advance) until the lead enters the braking range, where the goal drops to
@@ -75,6 +82,8 @@ from __future__ import annotations
 
 import math
 
+from sdc_agents.highway.fsm_modes import OptionalModes, SpeedGoal
+from sdc_agents.highway.fsm_options import FSMOptions
 from sdc_agents.highway.fsm_parameters import (
     ACTIVE,
     CALM,
@@ -111,6 +120,12 @@ class FSMBehavior:
     ) -> None:
         self._style = style
         self._params = params if params is not None else FSMParameters.for_style(style)
+        # The optional modes (Alert, Caution, Reverse, Hyper), when any is on.
+        self._extra = OptionalModes(self._params) if self._params.extra_modes else None
+        # The options (straight-line braking, crash rerouting, easing), when any is on.
+        p = self._params
+        self._options = FSMOptions(p) if (p.straight_braking.enabled or p.reroute.enabled
+                                          or p.easing.enabled) else None
         self.reset()
 
     # ----------------------------------------------------------------- read-only state
@@ -124,7 +139,21 @@ class FSMBehavior:
 
     @property
     def mode(self) -> Mode:
+        """The mode in force: an optional mode while one holds, else the seed's."""
+        extra = self._extra
+        if extra is not None and extra.mode is not None:
+            return extra.mode
         return self._mode
+
+    @property
+    def base_mode(self) -> Mode:
+        """The seed's mode (Launch, Adapt, Advance, Cruise), under any optional one."""
+        return self._mode
+
+    @property
+    def modes_entered(self) -> frozenset[str]:
+        """The optional modes entered since the episode began (none without them)."""
+        return frozenset(self._extra.entered) if self._extra is not None else frozenset()
 
     @property
     def target_lane(self) -> int:
@@ -170,6 +199,10 @@ class FSMBehavior:
         self._change_began_in_advance = False
         self._origin_lane = -1
         self._aborted = False
+        if self._extra is not None:
+            self._extra.reset()
+        if self._options is not None:
+            self._options.reset()
 
     def _enter(self, mode: Mode, now: float) -> None:
         self._mode = mode
@@ -210,6 +243,8 @@ class FSMBehavior:
             # now: the queued path would carry the car on toward them for another second.
             self._target_lane = target = self._origin_lane
             self._aborted = True
+            if self._options is not None and self._params.easing.enabled:
+                self._options.snap(target)
 
         own = lanes[ego]
         ahead = own.ahead_gap
@@ -251,6 +286,15 @@ class FSMBehavior:
                     lead_gap = lv.ahead_gap
                     lead_speed = lv.ahead_speed
 
+        extra = self._extra
+        special = None
+        brake_range = prof.brake_range_m
+        if extra is not None:
+            special = extra.update(world, mode, ahead, prof.mid_range_m, p.cruise_speed_mps)
+            if special is Mode.ALERT:
+                lead_gap, lead_speed = extra.alert_lead(world, lead_gap, lead_speed)
+                brake_range = max(brake_range, p.alert.brake_range_m)
+
         # Speed.
         vmax = p.max_speed_mps
         replan = aborting
@@ -268,14 +312,14 @@ class FSMBehavior:
         hard = False
         following = False  # the lead, not the mode, sets the speed goal
         k = p.approach_gain_per_s
-        if k > 0.0 and prof.brake_range_m <= lead_gap < math.inf and mode is not Mode.LAUNCH:
-            cap = self._range_speed(prof, lead_speed) + k * (lead_gap - prof.brake_range_m)
+        if k > 0.0 and brake_range <= lead_gap < math.inf and mode is not Mode.LAUNCH:
+            cap = self._range_speed(brake_range, lead_speed) + k * (lead_gap - brake_range)
             if cap < goal:
                 goal = cap
                 following = True
                 if goal < v and accel < p.normal_acceleration_mps2:
                     accel = p.normal_acceleration_mps2
-        if lead_gap < prof.brake_range_m:
+        if lead_gap < brake_range:
             fraction = p.braking_percent(lead_gap) * 0.01
             goal = fraction * lead_speed
             if fraction < p.hard_braking_fraction:
@@ -286,7 +330,7 @@ class FSMBehavior:
         if not hard and own.behind_gap < p.push_from_behind_m and mode is not Mode.LAUNCH:
             lead_v = lead_speed if lead_gap != math.inf else p.cruise_speed_mps
             push = 0.5 * (lead_v + own.behind_speed)
-            if lead_gap < prof.brake_range_m and push > lead_speed:
+            if lead_gap < brake_range and push > lead_speed:
                 push = lead_speed
             if push > vmax:
                 push = vmax
@@ -294,9 +338,37 @@ class FSMBehavior:
                 goal = push
                 accel = p.push_acceleration_mps2
                 replan = True
+        if special is not None:
+            assert extra is not None
+            speed = SpeedGoal(goal, accel, hard, replan)
+            extra.adjust_speed(world, speed, p.cruise_speed_mps, self._changing, target)
+            goal, accel, hard, replan = speed.goal, speed.accel, speed.hard, speed.replan
+            if goal > vmax:
+                goal = vmax
+        options = self._options
+        if options is not None and p.straight_braking.enabled:
+            accel = options.braking(accel, hard, world)
 
-        # Lane changes.
-        if (
+        # Lane changes (an optional mode's choice first, where it makes one; then crash
+        # rerouting's).
+        choice = None
+        if special is not None and not self._changing:
+            assert extra is not None
+            choice = extra.lane_change(world, now - self._last_change_time, hard)
+        closed: frozenset[int] = frozenset()
+        if options is not None and p.reroute.enabled:
+            closed = options.closed_lanes(world)
+            if (choice is None and ego in closed and not self._changing and not hard
+                    and mode is not Mode.LAUNCH
+                    and world.road_radius > p.single_change_radius_m):
+                choice = self._reroute(lanes, world.lane_count, ego, v, closed)
+                if choice < 0:
+                    choice = None  # no way out yet: the seed's rules as usual
+        if choice is not None:
+            if choice >= 0:
+                replan = True
+                target = self._begin_change(choice, target, now, mode)
+        elif (
             mode is not Mode.LAUNCH
             and not hard
             and not self._changing
@@ -313,13 +385,14 @@ class FSMBehavior:
                     replan = True
             if new < 0 and since > prof.strategic_cooldown_s:
                 new = self._strategic(lanes, world.lane_count, ego, ahead, v, prof)
+            if new in closed or (abs(new - ego) == 2 and (ego + new) // 2 in closed):
+                new = -1  # never into (or across) a lane a crash closes
             if new >= 0:
-                self._origin_lane = target
-                self._target_lane = target = new
-                self._last_change_time = now
-                self._changing = True
-                self._aborted = False
-                self._change_began_in_advance = mode is Mode.ADVANCE
+                target = self._begin_change(new, target, now, mode)
+
+        target_d = None
+        if options is not None and p.easing.enabled:
+            target_d = options.target_d(world, target)
 
         return BehaviorDecision(
             target_lane=target,
@@ -327,8 +400,29 @@ class FSMBehavior:
             acceleration=accel,
             replan=replan,
             steering=mode is not Mode.LAUNCH,
-            mode=mode.value,
+            mode=(special or mode).value,
+            target_d=target_d,
         )
+
+    def _reroute(self, lanes: tuple[LaneView, ...], n: int, ego: int, v: float,
+                 closed: frozenset[int]) -> int:
+        """Crash rerouting's lane out of a closed ``ego`` lane: an adjacent open lane with
+        more room ahead and a safe gap behind (the most room first), or -1."""
+        for t in self._most_room_first(lanes, n, ego - 1, ego + 1):
+            if (t not in closed and lanes[t].ahead_gap > lanes[ego].ahead_gap
+                    and self._safe_behind(lanes[t], v, self._params.safety_gap_min_m)):
+                return t
+        return -1
+
+    def _begin_change(self, new: int, target: int, now: float, mode: Mode) -> int:
+        """Start a lane change from ``target`` (the lane driven to) to ``new``."""
+        self._origin_lane = target
+        self._target_lane = new
+        self._last_change_time = now
+        self._changing = True
+        self._aborted = False
+        self._change_began_in_advance = mode is Mode.ADVANCE
+        return new
 
     def _must_abort(self, world: WorldModel, target: int) -> bool:
         """A car is in (or entering) the target lane right beside the ego, while the ego
@@ -358,9 +452,9 @@ class FSMBehavior:
                 return True
         return False
 
-    def _range_speed(self, prof: RangeProfile, lead_speed: float) -> float:
+    def _range_speed(self, brake_range_m: float, lead_speed: float) -> float:
         """The braking curve's speed at the edge of its range, behind ``lead_speed``."""
-        return self._params.braking_percent(prof.brake_range_m) * 0.01 * lead_speed
+        return self._params.braking_percent(brake_range_m) * 0.01 * lead_speed
 
     # ------------------------------------------------------------------ lane rules
     def _safe_behind(self, lane: LaneView, v: float, least: float) -> bool:

@@ -6,8 +6,17 @@ from __future__ import annotations
 
 import enum
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
+from sdc_agents.highway.fsm_mode_parameters import (
+    AlertRules,
+    CautionRules,
+    EasingRules,
+    HyperRules,
+    RerouteRules,
+    ReverseRules,
+    StraightBrakingRules,
+)
 from sdc_gym.stack.highway.behavior import (
     BRAKE_CURVE_DECAY_PER_M,
     BRAKE_CURVE_GAIN_PCT_PER_M,
@@ -38,6 +47,12 @@ class Mode(enum.Enum):
     ADAPT = "adapt"
     ADVANCE = "advance"
     CRUISE = "cruise"
+    # The optional modes (off by default; agents/highway/fsm_mode_parameters.py). They
+    # sit on top of the four above, whose timers run on underneath.
+    ALERT = "alert"
+    CAUTION = "caution"
+    REVERSE = "reverse"
+    HYPER = "hyper"
 
 
 @dataclass(frozen=True)
@@ -156,6 +171,10 @@ class FSMParameters:
             can still be aborted (2 m: up to the lane line).
         merge_rate_mps: a car in the lane beyond the target one moving toward it faster
             than this (m/s, lateral) counts as entering the target lane.
+        alert, caution, reverse, hyper: the optional modes (each off unless ``enabled``;
+            see :mod:`sdc_agents.highway.fsm_mode_parameters`).
+        straight_braking, reroute, easing: the options straight-line maximum braking,
+            crash rerouting and quintic easing of the steering target (the same module).
     """
 
     calm: RangeProfile = CALM
@@ -196,6 +215,13 @@ class FSMParameters:
     abort_gap_m: float = 8.0
     abort_window_m: float = 2.0
     merge_rate_mps: float = 0.3
+    alert: AlertRules = field(default_factory=AlertRules)
+    caution: CautionRules = field(default_factory=CautionRules)
+    reverse: ReverseRules = field(default_factory=ReverseRules)
+    hyper: HyperRules = field(default_factory=HyperRules)
+    straight_braking: StraightBrakingRules = field(default_factory=StraightBrakingRules)
+    reroute: RerouteRules = field(default_factory=RerouteRules)
+    easing: EasingRules = field(default_factory=EasingRules)
 
     def __post_init__(self) -> None:
         if not 0.0 < self.max_speed_mps <= SPEED_LIMIT_MPS:
@@ -204,6 +230,12 @@ class FSMParameters:
             raise ValueError("cruise_speed_mps must be in (0, max_speed_mps]")
         if self.brake_curve_decay_per_m <= 0.0:
             raise ValueError("brake_curve_decay_per_m must be > 0")
+
+    @property
+    def extra_modes(self) -> bool:
+        """Whether any optional mode is on (the seed's machine alone when not)."""
+        return (self.alert.enabled or self.caution.enabled or self.reverse.enabled
+                or self.hyper.enabled)
 
     @classmethod
     def for_style(cls, style: DrivingStyle, **overrides: object) -> FSMParameters:

@@ -66,6 +66,8 @@ class BehaviorDecision:
             emergency: the queued points would carry the car on too fast).
         steering: False mutes steering (the seed's Launch).
         mode: the policy's state name, for logs and the renderer.
+        target_d: where to aim across the road (m) instead of ``target_lane``'s centre
+            (an eased lane change); ``None``: the lane's centre.
     """
 
     target_lane: int
@@ -74,6 +76,7 @@ class BehaviorDecision:
     replan: bool = False
     steering: bool = True
     mode: str = ""
+    target_d: float | None = None
 
 
 class BehaviorPolicy(Protocol):

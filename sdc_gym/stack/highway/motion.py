@@ -200,6 +200,7 @@ class MotionBatch:
         self.paths = np.zeros((envs, p.path_length, 2))
         self.lengths = np.zeros(envs, dtype=np.int64)
         self._all = np.ones(envs, dtype=bool)
+        self._lane_centres = np.full(envs, math.nan)  # target_d: each target lane's centre
         for env in range(envs):
             self.reset_at(env)
 
@@ -213,11 +214,16 @@ class MotionBatch:
 
     def plan(self, ego: NDArray[np.float64], target_lane: NDArray, target_speed: NDArray,
              acceleration: NDArray, replan: NDArray[np.bool_], steering: NDArray[np.bool_],
-             active: NDArray[np.bool_] | None = None) -> tuple[NDArray[np.float64],
-                                                               NDArray[np.int64]]:
+             active: NDArray[np.bool_] | None = None,
+             target_d: NDArray[np.float64] | None = None) -> tuple[NDArray[np.float64],
+                                                                   NDArray[np.int64]]:
         """One cycle of every (``active``) env: ``ego`` ``(envs, 6)`` as observed (x, y,
-        s, d, yaw, speed; the observation's float32 values), the decisions as arrays.
-        Returns the paths ``(envs, path_length, 2)`` (the first ``lengths`` points)."""
+        s, d, yaw, speed; the observation's float32 values), the decisions as arrays
+        (``target_d``: where to aim across the road, NaN or ``None`` for the target lane's
+        centre). Returns the paths ``(envs, path_length, 2)`` (the first ``lengths``
+        points)."""
+        if target_d is None:
+            target_d = self._lane_centres
         plan_batch(self._kernel_params, self._coef, self._line, self.buffer, self.start,
                    self.stop, self.end_row, self.has_end, self.last_row, self.has_last,
                    self.counters, self.floats, self.flags,
@@ -226,7 +232,8 @@ class MotionBatch:
                    np.asarray(target_speed, dtype=np.float64),
                    np.asarray(acceleration, dtype=np.float64), np.asarray(replan, dtype=bool),
                    np.asarray(steering, dtype=bool), self._all if active is None else active,
-                   self.paths, self.lengths, 2.0, 3.0)
+                   np.asarray(target_d, dtype=np.float64), self.paths, self.lengths, 2.0,
+                   3.0)
         return self.paths, self.lengths
 
     def end_of(self, env: int) -> NDArray[np.float64]:
@@ -277,9 +284,10 @@ class SeedMotionPlanner:
         if batch.envs != 1:
             raise RuntimeError("plan() of one env of a batch: plan the batch")
         ego = np.asarray(observation["ego"]).astype(np.float64).reshape(1, 6)
+        aim = math.nan if decision.target_d is None else decision.target_d
         paths, lengths = batch.plan(ego, (decision.target_lane,), (decision.target_speed,),
                                     (decision.acceleration,), (decision.replan,),
-                                    (decision.steering,))
+                                    (decision.steering,), target_d=(aim,))
         return paths[0, :int(lengths[0])].copy()
 
     def _end_row(self) -> list[float]:

@@ -54,8 +54,8 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
                has_last: np.ndarray, counters: np.ndarray, floats: np.ndarray,
                flags: np.ndarray, ego: np.ndarray, target_lane: np.ndarray,
                target_speed: np.ndarray, acceleration: np.ndarray, replan: np.ndarray,
-               steering: np.ndarray, active: np.ndarray, out: np.ndarray,
-               out_length: np.ndarray, two: float, three: float) -> None:
+               steering: np.ndarray, active: np.ndarray, target_d: np.ndarray,
+               out: np.ndarray, out_length: np.ndarray, two: float, three: float) -> None:
     """One planning cycle of every active env (see the module docstring).
 
     ``params``: path_length, replan_keep, look_ahead, steering_gate,
@@ -63,7 +63,8 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
     arrival (the eased rate's factor), lane_change_tolerance, unwind_margin,
     frames_per_cycle, latency_frames, batch_points, match tolerance squared, step (s),
     lane count, lane width. ``line``: knot_step, inverse_step, segments, param_scale,
-    length. Per env: ``counters`` (cycles, consumed, lead), ``floats`` (ds_ratio,
+    length. ``target_d``: per env the d to steer at, NaN for the target lane's centre (an
+    eased lane change). Per env: ``counters`` (cycles, consumed, lead), ``floats`` (ds_ratio,
     curvature_target, anchor x, anchor y, target_d), ``flags`` (lane_changing,
     queued_muted).
     """
@@ -151,6 +152,8 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
         flags[e, 1] = not steering[e]
         lane = min(max(int(target_lane[e]), 0), lanes - 1)
         floats[e, 4] = (lane + 0.5) * lane_width
+        if not math.isnan(target_d[e]):
+            floats[e, 4] = target_d[e]
         missing = path_length - (stop[e] - start[e])
         if missing > 0:
             replay_from = _extend(params, coef, line, buffer, start, stop, end_row,
