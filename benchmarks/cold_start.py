@@ -232,6 +232,8 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=1)
     parser.add_argument("--steps", type=int, default=500)
     parser.add_argument("--cases", nargs="*", default=list(CASES), choices=list(CASES))
+    parser.add_argument("--tree", type=Path, default=ROOT,
+                        help="the tree measured as 'now' (default: this checkout)")
     parser.add_argument("--before", type=Path, default=None,
                         help="another tree to run side by side (its sdc_gym, this venv)")
     parser.add_argument("--warm", action="store_true",
@@ -243,7 +245,9 @@ def main() -> None:
     if args.child:
         print(json.dumps(child(args.child, args.steps)))
         return
-    trees = {"now": ROOT, **({"before": args.before.resolve()} if args.before else {})}
+    trees = {"now": args.tree.resolve()}
+    if args.before:
+        trees["before"] = args.before.resolve()
     print(f"cold start, {args.rounds} round(s), {args.steps}-step episode part, load "
           f"{' '.join(f'{v:.2f}' for v in os.getloadavg())}; CPU seconds (user + sys) "
           f"min / median / max")
