@@ -123,6 +123,8 @@ def child(case: str, steps: int) -> dict[str, Any]:
         import yaml
 
         config = yaml.safe_load((ROOT / "configs" / config["config_file"]).read_text())["config"]
+        # The preset's map is relative to the checkout's root (../shared/...): this one's.
+        config["map"] = str((ROOT / config["map"]).resolve())
     mark("import", "make")
     if num_envs:
         env = gym.make_vec(env_id, num_envs=num_envs, vectorization_mode="vector_entry_point",
@@ -260,9 +262,13 @@ def main() -> None:
                     for state in states:
                         result = run_child(tree, case, args.steps, cache)
                         results.setdefault((case, tree_name, state), []).append(result)
+                        first = sum(result["times"][p]["cpu"] for p in PHASES[1:4])
+                        mid = sum(1 for c in result["compiles"]
+                                  if c["top"] and c["phase"] == "episode")
                         print(f"  {case:20} {tree_name:6} {state}: "
                               f"{result['process_cpu']:5.1f} s CPU, "
-                              f"{result['process_wall']:5.1f} s wall", flush=True)
+                              f"{result['process_wall']:5.1f} s wall, make..first step "
+                              f"{first:5.1f} s CPU, {mid} compiled mid-episode", flush=True)
     rows = [[case, tree, state, *summary(found, args.steps)]
             for (case, tree, state), found in results.items()]
     print()
