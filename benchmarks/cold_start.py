@@ -1,7 +1,7 @@
 """What the first use of each env costs on a fresh clone: numba compiling its kernels.
 
     python benchmarks/cold_start.py [--rounds 3] [--steps 500] [--cases highway behavior ...]
-        [--before TREE] [--profile] [--warm]
+        [--tree TREE] [--before TREE] [--profile] [--warm]
 
 Every case runs in a fresh subprocess with ``NUMBA_CACHE_DIR`` set to an empty temporary
 folder (so nothing is cached: what a fresh clone or CI pays), and with ``--warm`` once
@@ -16,8 +16,10 @@ this package's functions compiled in each phase, how many signatures each, and w
 ``--profile`` the kernels that cost the most CPU of their own (a kernel's compile time
 less the time of the kernels it compiled on the way).
 
-``--before TREE`` runs the same cases from another tree (e.g. ``git archive <commit> | tar
--x -C /tmp/before``) with this venv, side by side in each round, and prints the ratio.
+``--tree TREE`` measures another tree's sdc_gym as "now" (a snapshot, so that editing
+this checkout during a run changes nothing); ``--before TREE`` runs the same cases from
+another tree (e.g. ``git archive <commit> | tar -x -C /tmp/before``) with this venv, side
+by side in each round, and prints the ratio.
 Other jobs on the machine skew wall times; CPU seconds are steadier.
 """
 
