@@ -32,6 +32,8 @@ from __future__ import annotations
 import contextlib
 import functools
 import hashlib
+import os
+import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -180,6 +182,52 @@ class _CompileCounter(event.Listener):
         pass
 
 
+class _FirstUseNotice(event.Listener):
+    """Says on stderr that this package's kernels are compiling, wherever that happens
+    (a user's own script, a test, a notebook) and not only under :func:`compile_progress`:
+    a line at the first compilation of a process, then one every :data:`NOTICE_EVERY`
+    seconds while compilations go on, so that a fresh clone's first step is not a silent
+    wait. Quiet inside :func:`compile_progress` (it shows its own status) and with
+    ``SDC_GYM_COMPILE_NOTICE=0``."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.started = 0.0
+        self.reported = 0.0
+        self.quiet_depth = 0
+
+    def on_start(self, happening: Any) -> None:
+        data = getattr(happening, "data", None)
+        dispatcher = data.get("dispatcher") if isinstance(data, dict) else None
+        function = getattr(dispatcher, "py_func", None)
+        module = getattr(function, "__module__", "") or ""
+        if self.quiet_depth or not module.startswith("sdc_gym"):
+            return
+        now = time.perf_counter()
+        self.count += 1
+        if self.count == 1:
+            self.started = self.reported = now
+            print("sdc-gym: compiling the kernels on first use (once per clone or install, "
+                  "then loaded from __pycache__; about 20-40 s of CPU per env) ...",
+                  file=sys.stderr, flush=True)
+        elif now - self.reported >= NOTICE_EVERY:
+            self.reported = now
+            print(f"sdc-gym: ... {self.count} kernels compiled, {now - self.started:.0f} s, "
+                  f"now {module.rsplit('.', 1)[-1]}.{function.__name__}",
+                  file=sys.stderr, flush=True)
+
+    def on_end(self, happening: Any) -> None:
+        pass
+
+
+NOTICE_EVERY = 10.0
+"""Seconds between two progress lines of the first-use notice."""
+
+_NOTICE = _FirstUseNotice()
+if os.environ.get("SDC_GYM_COMPILE_NOTICE", "1") != "0":
+    event.register("numba:compile", _NOTICE)
+
+
 @contextlib.contextmanager
 def compile_progress(console: Any = None) -> Iterator[_CompileCounter]:
     """Show numba compiling this package's kernels while the block runs.
@@ -212,9 +260,11 @@ def compile_progress(console: Any = None) -> Iterator[_CompileCounter]:
 
     counter = _CompileCounter(on_compile)
     event.register("numba:compile", counter)
+    _NOTICE.quiet_depth += 1
     try:
         yield counter
     finally:
+        _NOTICE.quiet_depth -= 1
         event.unregister("numba:compile", counter)
         if status is not None:
             status.stop()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 import shutil
 from pathlib import Path
 
@@ -137,3 +138,50 @@ def test_compile_progress_counts_this_package_s_compilations_and_says_so() -> No
     with compile_progress(Console(file=quiet)) as counter:
         assert compiled(4.0) == 8.0
     assert counter.count == 0 and quiet.getvalue() == ""
+
+
+def test_first_use_notice_says_on_stderr_that_kernels_compile_but_not_under_progress(
+        capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch) -> None:
+    from numba import njit
+
+    def thrice(x: float) -> float:
+        return 3.0 * x
+
+    thrice.__module__ = "sdc_gym.notice_probe"  # one of the package's functions
+    notice = kernel_compiler._NOTICE  # registered when sdc_gym.kernel_compiler loads
+    if os.environ.get("SDC_GYM_COMPILE_NOTICE") == "0":
+        pytest.skip("the notice is off in this environment (SDC_GYM_COMPILE_NOTICE=0)")
+    monkeypatch.setattr(kernel_compiler, "NOTICE_EVERY", 0.0)  # every compile reports
+    monkeypatch.setattr(notice, "count", 0)  # as in a fresh process
+    assert njit(thrice)(2.0) == 6.0  # uncached: compiles on every run of the test
+    assert njit(thrice)(1.0) == 3.0  # a second dispatcher: a progress line
+    first = capsys.readouterr().err
+    with kernel_compiler.compile_progress():
+        assert njit(thrice)(4.0) == 12.0
+    under_progress = capsys.readouterr().err
+    assert first.startswith("sdc-gym: compiling the kernels on first use")
+    assert "sdc-gym: ... 2 kernels compiled" in first and "notice_probe.thrice" in first
+    assert notice.count == 2 and "sdc-gym: ..." not in under_progress
+
+
+def test_the_recycling_kernel_is_compiled_when_a_traffic_batch_is_made() -> None:
+    """Not at the first recycle, mid-episode: a fresh process has no signature of
+    ``recycle_rows`` before the batch and exactly the one the steps use after it."""
+    import subprocess
+    import sys
+
+    probe = (
+        "import numpy as np\n"
+        "from sdc_gym.road.highway_map import HighwayMap\n"
+        "from sdc_gym.traffic.batch import TrafficBatch\n"
+        "from sdc_gym.traffic.placement import recycle_rows\n"
+        "assert not recycle_rows.signatures, recycle_rows.signatures\n"
+        "t = np.linspace(0, 2 * np.pi, 400, endpoint=False)\n"
+        "road = HighwayMap.from_waypoints('oval', np.column_stack([1500 * np.cos(t), "
+        "400 * np.sin(t)]))\n"
+        "TrafficBatch(road, envs=2)\n"
+        "print(len(recycle_rows.signatures))\n")
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True,
+                          timeout=600, check=False)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "1"

@@ -220,7 +220,10 @@ def record_batch(rules: np.ndarray, bands: np.ndarray, fs: np.ndarray, ints: np.
     return count, lap_count
 
 
-@njit(cache=True)
+# One explicit signature: typed from record_batch, whose running count starts as the
+# literal 0, numba would otherwise compile it twice (Literal[int](0) and int64).
+@njit("int64(float64[:, ::1], int64[:, ::1], int64, int64, float64[::1], int64, float64, "
+      "float64, float64[:, ::1], int64)", cache=True)
 def _count_laps(fs: np.ndarray, ints: np.ndarray, e: int, t0: int, cum_progress: np.ndarray,
                 k: int, dt: float, loop: float, laps_out: np.ndarray, lap_count: int) -> int:
     """Every lap mark the chunk's progress crossed, timed by linear interpolation (run

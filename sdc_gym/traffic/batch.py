@@ -171,6 +171,7 @@ class TrafficBatch:
         self._ready = False
         self._round_plans: dict[int, tuple[NDArray, ...]] = {}
         self._scratch_for(self.slots)
+        placement.compile_recycling(self)  # at make, not at the first recycle
 
     def _decision_constants(self) -> FloatArray:
         cfg, idm = self.config, self.config.idm
