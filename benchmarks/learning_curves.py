@@ -93,13 +93,13 @@ def main(argv: list[str] | None = None) -> None:
                                                                       strict=True)))
     for reference in args.reference:
         name, mph = parse_pair(reference, "reference")
-        axes.axhline(float(mph), linestyle="--", color="black", linewidth=1)
-        axes.annotate(name, (0, float(mph)), textcoords="offset points", xytext=(4, 3))
+        axes.axhline(float(mph), linestyle="--", color="black", linewidth=1,
+                     label=f"{name} on the same episodes ({float(mph):.2f})")
     axes.set_xlabel("samples (millions of decisions)")
     axes.set_ylabel("mean mph, evaluation episodes")
     axes.set_title(args.title)
     axes.grid(alpha=0.3)
-    axes.legend(loc="lower right")
+    axes.legend(loc="lower right", fontsize=8)
     figure.tight_layout()
     args.output.parent.mkdir(parents=True, exist_ok=True)
     figure.savefig(args.output, dpi=110)
