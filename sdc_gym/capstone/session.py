@@ -66,6 +66,7 @@ from sdc_gym.capstone.sim_clock import DBW_COMMAND_TOPICS, DEFAULT_ROS_PYTHON, R
 from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
 PORT_PLACEHOLDER: Final = "{port}"
+MASTER_PORT_PLACEHOLDER: Final = "{master_port}"  # a free port for the stack's ROS master
 DEATH_WAIT_S: Final = 1.0  # for the exit status of a stack whose connection ended
 
 
@@ -85,8 +86,10 @@ class CapstoneOptions:
             before the episode ends ``stack_stalled``.
         lockstep: step as fast as the stack keeps up instead of in real time.
         sim_time: own the stack's ``/clock`` (implies lock-step): for a stack launched
-            with ``/use_sim_time`` true on the master at ``ros_master_uri`` (``None``:
-            ``$ROS_MASTER_URI``, else roscore's default); ``ros_python`` runs the clock
+            with ``/use_sim_time`` true on the master at ``ros_master_uri`` (``None``: a
+            free port when the command has ``{master_port}``, else ``$ROS_MASTER_URI``,
+            else roscore's default; a stack started here gets it as its
+            ``ROS_MASTER_URI``); ``ros_python`` runs the clock
             node; ``clock_topics`` answer a tick (the DBW node's commands); a tick they
             have not all answered within ``tick_timeout`` wall s is *missed*: the step
             goes on with the commands held (``reply_timeout`` of them ends the episode
@@ -132,6 +135,14 @@ class CapstoneOptions:
         if self.image_format not in IMAGE_FORMATS:
             raise ValueError(f"CapstoneOptions.image_format must be one of {IMAGE_FORMATS}, "
                              f"got {self.image_format!r}")
+        topics = self.clock_topics
+        if isinstance(topics, str) or not all(isinstance(t, str) for t in topics):
+            raise ValueError(f"CapstoneOptions.clock_topics must be a sequence of topic "
+                             f"names, got {topics!r}")
+        object.__setattr__(self, "clock_topics", tuple(topics))  # a list from JSON
+        if self.sim_time and not self.clock_topics:
+            raise ValueError("CapstoneOptions.clock_topics must name at least one topic "
+                             "that answers a tick (the DBW node's commands by default)")
         if self.port is not None and not 0 < self.port < 65536:
             raise ValueError(f"CapstoneOptions.port must be in 1..65535, got {self.port}")
 
@@ -156,15 +167,28 @@ class CapstoneSession:
         if port is None:
             port = free_port() if command and PORT_PLACEHOLDER in command else DEFAULT_PORT
         self.port = int(port)
+        self.ros_master_uri = self.options.ros_master_uri
+        if command is not None and MASTER_PORT_PLACEHOLDER in command:
+            if self.ros_master_uri is not None:
+                raise ValueError(f"the stack command has {MASTER_PORT_PLACEHOLDER} and "
+                                 f"ros_master_uri is {self.ros_master_uri!r}: give one")
+            master_port = free_port()
+            while master_port == self.port:
+                master_port = free_port()
+            command = command.replace(MASTER_PORT_PLACEHOLDER, str(master_port))
+            self.ros_master_uri = f"http://127.0.0.1:{master_port}"
+        # The stack's nodes and sdc-gym's clock node on one master.
+        stack_env = None if self.ros_master_uri is None else {
+            "ROS_MASTER_URI": self.ros_master_uri}
         self.process = (None if command is None else PlannerProcess(
             command, cwd=self.options.cwd, port=self.port, log_path=self.options.log_path,
-            log_limit=self.options.log_limit))
+            log_limit=self.options.log_limit, env=stack_env))
         self.client = StyxClient(self.options.host, self.port)
         self.clock: RosClock | None = None
         if self.options.sim_time:
             clock_log = (None if self.options.log_path is None
                          else f"{self.options.log_path}.clock")
-            self.clock = RosClock(self.options.ros_master_uri, self.options.clock_topics,
+            self.clock = RosClock(self.ros_master_uri, self.options.clock_topics,
                                   self.options.ros_python, clock_log)
         self.missed_ticks = 0  # sim time: ticks the stack did not answer in time
         self.late_steps = 0  # sim time: answered ticks whose commands came a step late
