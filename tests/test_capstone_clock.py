@@ -12,9 +12,12 @@ import sys
 import time
 from pathlib import Path
 
+import gymnasium as gym
 import pytest
 
+import sdc_gym  # noqa: F401  (registers the envs)
 from sdc_gym.bridge.reaper import descendants
+from sdc_gym.capstone import CapstoneOptions, CapstoneSession
 from sdc_gym.capstone.errors import RosClockFailed
 from sdc_gym.capstone.sim_clock import RosClock, ros_available
 from tests.processes import all_gone
@@ -120,3 +123,25 @@ def test_a_rate_node_wakes_at_the_clocks_ticks_only(master, tmp_path):
     assert all(abs(float(words[3]) - int(words[2]) / 1e9) < 1e-9 for words in loops)
     assert all(t % TICK_NS == 0 for t in times)  # never a time the clock did not publish
     assert all_gone([clock.pid, silent.pid]) == []
+
+
+def test_sim_time_options_and_the_master_port_placeholder():
+    """No ROS needed: the options' checks, and ``{master_port}`` becoming a free port that
+    the stack gets as its ROS_MASTER_URI and the clock node uses."""
+    with pytest.raises(ValueError, match="clock_topics must name at least one topic"):
+        CapstoneOptions(sim_time=True, clock_topics=())
+    with pytest.raises(ValueError, match="tick_timeout must be > 0 s, got 0"):
+        CapstoneOptions(tick_timeout=0)
+    assert CapstoneOptions(clock_topics=["/a"]).clock_topics == ("/a",)  # a list from JSON
+    env = gym.make("sdc_gym/TrackLoop-v0")
+    with pytest.raises(ValueError, match=r"has \{master_port\} and ros_master_uri"):
+        CapstoneSession(env, "roslaunch -p {master_port} styx.launch",
+                        CapstoneOptions(ros_master_uri="http://127.0.0.1:11311"))
+    session = CapstoneSession(env, "roslaunch -p {master_port} --port {port} styx.launch",
+                              CapstoneOptions(sim_time=True))
+    master_port = int(session.process.arguments[2])
+    assert session.process.arguments[4] == str(session.port) != str(master_port)
+    assert session.ros_master_uri == f"http://127.0.0.1:{master_port}"
+    assert session.process.env == {"ROS_MASTER_URI": session.ros_master_uri}
+    assert session.clock is not None and session.clock.uri == session.ros_master_uri
+    env.close()

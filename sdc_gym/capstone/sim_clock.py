@@ -75,10 +75,7 @@ class RosClock:
         self.uri = master_uri(uri)
         self.topics = tuple(topics)
         self.python = python
-        if log_path is None:
-            handle, log_path = tempfile.mkstemp(prefix="sdc_gym_clock_", suffix=".log")
-            os.close(handle)
-        self.log_path = log_path
+        self.log_path = log_path  # None: a new temporary file at start()
         self.pid: int | None = None
         self.ticks = 0
         self._process: subprocess.Popen[str] | None = None
@@ -92,6 +89,9 @@ class RosClock:
             raise RosClockFailed(f"sim time needs rospy, but the ROS Python {self.python!r} "
                                  "does not exist (Debian: apt-get install python3-rospy "
                                  "python3-rosgraph-msgs)")
+        if self.log_path is None:
+            handle, self.log_path = tempfile.mkstemp(prefix="sdc_gym_clock_", suffix=".log")
+            os.close(handle)
         Path(self.log_path).parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, "w")  # closed in close()
         env = {**os.environ, "ROS_MASTER_URI": self.uri}
@@ -163,6 +163,8 @@ class RosClock:
     def _log_excerpt(self) -> str:
         if self._log is not None:
             self._log.flush()
+        if self.log_path is None:
+            return "(none)"
         try:
             text = Path(self.log_path).read_text(errors="replace")
         except OSError:
