@@ -32,6 +32,7 @@ from numpy.typing import NDArray
 from sdc_agents.protocol import EpisodeAborted
 from sdc_gym.bridge.errors import BridgeError
 from sdc_gym.capstone.session import CapstoneOptions, CapstoneSession
+from sdc_gym.capstone.sim_clock import DBW_COMMAND_TOPICS, DEFAULT_ROS_PYTHON
 from sdc_gym.envs.track_loop import TrackLoopEnv
 
 CAPSTONE_KIND: Final = "capstone"
@@ -105,6 +106,19 @@ def add_capstone_arguments(parser: argparse.ArgumentParser) -> None:
     group.add_argument("--stack-lockstep", action="store_true",
                        help="run as fast as the stack keeps up (it must run on sim time "
                             "or tick per telemetry) instead of in real time")
+    group.add_argument("--stack-sim-time", action="store_true",
+                       help="own the stack's /clock (launched with /use_sim_time true): "
+                            "each step ticks it, waits for the DBW node's commands, then "
+                            "exchanges telemetry in lock-step")
+    group.add_argument("--stack-ros-master", default=None, metavar="URI",
+                       help="sim time: the stack's ROS master (default: a free port for a "
+                            "{master_port} argument, else $ROS_MASTER_URI)")
+    group.add_argument("--stack-ros-python", default=DEFAULT_ROS_PYTHON, metavar="PYTHON",
+                       help="sim time: the Python with rospy for sdc-gym's clock node")
+    group.add_argument("--stack-clock-topics", nargs="+", default=list(DBW_COMMAND_TOPICS),
+                       metavar="TOPIC", help="sim time: the topics that answer a tick")
+    group.add_argument("--stack-tick-timeout", type=float, default=1.0, metavar="S",
+                       help="sim time: wall seconds before an unanswered tick is missed")
     group.add_argument("--stack-startup", type=float, default=60.0, metavar="S",
                        help="wall seconds for its server to accept the connection")
     group.add_argument("--stack-timeout", type=float, default=5.0, metavar="S",
@@ -133,7 +147,10 @@ def capstone_options_of(args: argparse.Namespace) -> CapstoneOptions:
         port=args.stack_port, cwd=(str(Path(args.stack_cwd).expanduser())
                                    if args.stack_cwd else None),
         startup_timeout=args.stack_startup, reply_timeout=args.stack_timeout,
-        lockstep=args.stack_lockstep, image_every=args.stack_image_every)
+        lockstep=args.stack_lockstep, image_every=args.stack_image_every,
+        sim_time=args.stack_sim_time, ros_master_uri=args.stack_ros_master,
+        ros_python=args.stack_ros_python, clock_topics=tuple(args.stack_clock_topics),
+        tick_timeout=args.stack_tick_timeout)
 
 
 def capstone_options(args: argparse.Namespace, agent: str, seed: int) -> dict[str, Any]:
@@ -148,6 +165,8 @@ def capstone_options(args: argparse.Namespace, agent: str, seed: int) -> dict[st
 
 
 def fixed_port(args: argparse.Namespace, agents: list[str]) -> bool:
-    """Whether capstone stacks share one fixed port (episodes must then run one at a time)."""
-    return any(is_capstone(agent) and ("{port}" not in agent or args.stack_port is not None)
-               for agent in agents)
+    """Whether capstone stacks share one fixed port (episodes must then run one at a time):
+    the styx server's, or in sim time the ROS master's (no ``{master_port}``)."""
+    return any(is_capstone(agent) and (
+        "{port}" not in agent or args.stack_port is not None
+        or (args.stack_sim_time and "{master_port}" not in agent)) for agent in agents)

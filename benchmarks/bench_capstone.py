@@ -1,6 +1,7 @@
 """What playing the capstone simulator for a stack through its styx server costs.
 
     python benchmarks/bench_capstone.py [--seconds 60] [--frames 1 5] [--images 20]
+    python benchmarks/bench_capstone.py --ros [--seconds 60]   # sim time, the ROS graph
 
 Four figures, each printed with the command's own numbers:
 
@@ -13,6 +14,11 @@ Four figures, each printed with the command's own numbers:
 * ``env step`` and ``stack wait``: where one step's wall time goes.
 * ``real-time factor`` (lock-step): simulated seconds per wall second; the original
   simulator runs at 1.
+* ``--ros``: the real-time factor of the tests' ROS 1 graph (tests/ros: roscore, the styx
+  node, sdc-gym's stack as a rospy node at ``rospy.Rate(50)``) in sim-time mode
+  (``/use_sim_time`` true, sdc-gym's ``/clock``), telemetry every frame, from the stack's
+  first command on; with where a step's wall time goes (the tick: clock out, the DBW
+  node's three commands back; the telemetry exchange; the env step).
 * ``camera cost/frame``: rendering the 800 x 600 camera, encoding it (JPEG quality 75,
   PNG) and base64, ``--images`` frames, best of three, and as a fraction of the
   original's 50 Hz frame budget (20 ms).
@@ -32,6 +38,7 @@ import gymnasium as gym
 import sdc_gym  # noqa: F401  (registers the ids)
 from sdc_gym.capstone import CapstoneOptions, CapstoneSession
 from sdc_gym.capstone.protocol import encode_image
+from sdc_gym.capstone.sim_clock import TickAnswer
 from sdc_gym.sensors.track_camera import CameraConfig, TrackCamera
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -80,6 +87,69 @@ def exchanges(seconds: float, frames: int) -> None:
     env.close()
 
 
+def ros_sim_time(seconds: float) -> None:
+    import os
+
+    from tests.ros.workspace import build_workspace
+    with tempfile.TemporaryDirectory() as folder:
+        root = Path(folder)
+        (root / "ws").mkdir()
+        os.environ["SDC_GYM_ROS_DEVEL"] = str(build_workspace(root / "ws"))
+        env = gym.make("sdc_gym/TrackLoop-v0", config={
+            "track": TRACK, "light_config": LIGHTS, "max_duration": seconds})
+        command = shlex.join([sys.executable, str(ROOT / "tests" / "ros" / "launch_graph.py"),
+                              "--port", "{port}", "--track", TRACK, "--lights", LIGHTS,
+                              "--master-port", "{master_port}", "--use-sim-time"])
+        session = CapstoneSession(env, command, CapstoneOptions(
+            sim_time=True, cwd=folder, log_path=str(root / "graph.log"),
+            startup_timeout=120.0))
+        _, info = env.reset(seed=0)
+        session.start()
+        clock = session.clock
+        assert clock is not None
+        tick_of_clock = clock.tick
+        timings = {"tick": 0.0, "exchange": 0.0, "env": 0.0}
+
+        def timed_tick(nanoseconds: int, wait: float) -> TickAnswer:
+            before = time.perf_counter()
+            answer = tick_of_clock(nanoseconds, wait)
+            timings["tick"] += time.perf_counter() - before
+            return answer
+
+        clock.tick = timed_tick  # type: ignore[method-assign]
+        steps, start = 0, None
+        try:
+            while True:
+                action = session.action(info)
+                if start is None:  # the start-up (until the first command) is behind us
+                    start = time.perf_counter()
+                    for key in timings:
+                        timings[key] = 0.0
+                    exchange_before = session.client.stats.wait_time
+                before = time.perf_counter()
+                _, _, terminated, truncated, info = env.step(action)
+                timings["env"] += time.perf_counter() - before
+                steps += 1
+                if terminated or truncated:
+                    break
+        finally:
+            session.close()
+        wall = time.perf_counter() - start
+        timings["exchange"] = session.client.stats.wait_time - exchange_before
+    extras = session.extras()
+    print(f"ROS graph on sim time, telemetry every frame (50 Hz), {info['time']:g} simulated "
+          f"s, {steps} steps, start-up {extras['stack_startup_wall']:.1f} wall s "
+          f"({extras['stack_clock_offset']:g} s of ROS time):")
+    print(f"  real-time factor  {info['time'] / wall:8.2f} x (from the first command)")
+    print(f"  steps/s           {steps / wall:8.1f}")
+    for key, total in timings.items():
+        print(f"  {key:17s} {1e3 * total / steps:8.2f} ms/step")
+    print(f"  missed ticks      {extras['stack_missed_ticks']:8d}, late steps "
+          f"{extras['stack_late_steps']}, red-light violations "
+          f"{info['summary']['red_light_violations']}, distance {info['distance']:.0f} m")
+    env.close()
+
+
 def camera(frames: int) -> None:
     env = gym.make("sdc_gym/TrackLoop-v0", config={"track": TRACK, "light_config": LIGHTS})
     env.reset(seed=0)
@@ -118,7 +188,12 @@ def main() -> None:
     parser.add_argument("--seconds", type=float, default=60.0)
     parser.add_argument("--frames", type=int, nargs="+", default=[1, 5])
     parser.add_argument("--images", type=int, default=20)
+    parser.add_argument("--ros", action="store_true",
+                        help="only the ROS graph's sim-time real-time factor")
     args = parser.parse_args()
+    if args.ros:
+        ros_sim_time(args.seconds)
+        return
     for frames in args.frames:
         exchanges(args.seconds, frames)
     camera(args.images)

@@ -3,16 +3,16 @@ catkin, the message packages; the Makefile's set-up installs them when it runs a
 a catkin workspace built here with ``styx_msgs`` and ``dbw_mkz_msgs`` written from their
 public definitions (tests/ros/src), roscore, a styx server node and sdc-gym's stack as a
 rospy node (tests/ros/), started by one launch command as a team's ``roslaunch`` is. The
-simulator side drives the original track in real time through the socket and the graph's
-topics, and ends the whole graph (roscore, rosmaster, rosout, every node) with the episode.
+simulator side drives the original track through the socket and the graph's topics, in
+real time and in sim time (``/use_sim_time`` true, sdc-gym's ``/clock``; the nodes are
+the same), and ends the whole graph (roscore, rosmaster, rosout, every node) and its own
+clock node with the episode.
 """
 
 from __future__ import annotations
 
-import os
+import itertools
 import shlex
-import shutil
-import subprocess
 import sys
 from pathlib import Path
 
@@ -22,51 +22,40 @@ import pytest
 import sdc_gym  # noqa: F401
 from sdc_gym.bridge.reaper import descendants
 from sdc_gym.capstone import CapstoneOptions, CapstoneSession
+from sdc_gym.lights.traffic_lights import RED
 from tests.conftest import UDACITY
 from tests.processes import all_gone
+from tests.ros.workspace import MISSING_REASON, build_workspace, ros_installed
 
 ROS = Path(__file__).resolve().parent / "ros"
 CAPSTONE = UDACITY / "capstone"
 TRACK = str(CAPSTONE / "wp_yaw_const.csv")
 LIGHTS = str(CAPSTONE / "sim_traffic_light_config.yaml")
-DEBIAN_TOOLS = ("/usr/bin/roscore", "/usr/bin/catkin_make",
-                "/usr/share/std_msgs/msg/Header.msg",
-                "/usr/share/geometry_msgs/msg/PoseStamped.msg")
 
-pytestmark = pytest.mark.skipif(
-    not all(Path(tool).exists() for tool in DEBIAN_TOOLS),
-    reason="ROS 1 from Debian is not installed (make test installs it as root: ros-core "
-           "python3-rospy catkin ros-message-generation libstd-msgs-dev "
-           "libgeometry-msgs-dev python3-std-msgs python3-geometry-msgs ros-std-msgs "
-           "ros-geometry-msgs)")
+pytestmark = pytest.mark.skipif(not ros_installed(), reason=MISSING_REASON)
 
 
 @pytest.fixture(scope="module")
-def workspace(tmp_path_factory) -> Path:
-    """The catkin workspace, built with Debian's Python (not the tests' one)."""
-    root = tmp_path_factory.mktemp("catkin_ws")
-    shutil.copytree(ROS / "src", root / "src")
-    result = subprocess.run(["/usr/bin/catkin_make", "-C", str(root),
-                             "-DPYTHON_EXECUTABLE=/usr/bin/python3"],
-                            cwd=root, env={**os.environ, "PATH": "/usr/bin:/bin",
-                                           "PWD": str(root)},
-                            capture_output=True, text=True, timeout=600)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    devel = root / "devel" / "lib" / "python3" / "dist-packages"
-    assert (devel / "styx_msgs" / "msg" / "_Lane.py").is_file()
-    assert (devel / "dbw_mkz_msgs" / "msg" / "_BrakeCmd.py").is_file()
-    return root
+def devel(tmp_path_factory) -> Path:
+    """The catkin workspace's Python folder, built with Debian's Python."""
+    folder = build_workspace(tmp_path_factory.mktemp("catkin_ws"))
+    assert (folder / "styx_msgs" / "msg" / "_Lane.py").is_file()
+    assert (folder / "dbw_mkz_msgs" / "msg" / "_BrakeCmd.py").is_file()
+    return folder
 
 
-def test_a_ros_graph_drives_the_original_track_in_real_time(workspace, monkeypatch):
-    monkeypatch.setenv("SDC_GYM_ROS_DEVEL",
-                       str(workspace / "devel" / "lib" / "python3" / "dist-packages"))
-    command = shlex.join([sys.executable, str(ROS / "launch_graph.py"), "--port", "{port}",
-                          "--track", TRACK, "--lights", LIGHTS])
+def graph_command(*extra: str) -> str:
+    return shlex.join([sys.executable, str(ROS / "launch_graph.py"), "--port", "{port}",
+                       "--track", TRACK, "--lights", LIGHTS, *extra])
+
+
+def test_a_ros_graph_drives_the_original_track_in_real_time(devel, tmp_path, monkeypatch):
+    monkeypatch.setenv("SDC_GYM_ROS_DEVEL", str(devel))
+    command = graph_command()
     env = gym.make("sdc_gym/TrackLoop-v0", config={"track": TRACK, "light_config": LIGHTS,
                                                    "max_duration": 25.0})
     session = CapstoneSession(env, command, CapstoneOptions(
-        cwd=str(workspace), log_path=str(workspace / "graph.log"), startup_timeout=120.0))
+        cwd=str(tmp_path), log_path=str(tmp_path / "graph.log"), startup_timeout=120.0))
     _, info = env.reset(seed=0)
     session.start()
     graph: list[int] = []
@@ -80,7 +69,7 @@ def test_a_ros_graph_drives_the_original_track_in_real_time(workspace, monkeypat
     finally:
         session.close()
     summary = info["summary"]
-    log = (workspace / "graph.log").read_text()
+    log = (tmp_path / "graph.log").read_text()
     assert summary["termination_reason"] == "max_duration", log[-2000:]
     assert summary["distance"] > 40.0, log[-2000:]  # away from the start under the stack
     assert summary["red_light_violations"] == 0
@@ -91,4 +80,58 @@ def test_a_ros_graph_drives_the_original_track_in_real_time(workspace, monkeypat
     # launcher, roscore, rosmaster, rosout, the styx node and the stack node
     assert len(graph) >= 6, graph
     assert all_gone([*graph, session.process.reaper_pid]) == []
+    env.close()
+
+
+SIM_SEED = 3  # light 0 is red when the car comes: it must stop (26.4 s in, ~250 m)
+
+
+def test_a_ros_graph_on_sim_time_stops_at_the_red_light(devel, tmp_path, monkeypatch):
+    """The same graph launched with /use_sim_time true: sdc-gym's /clock drives the nodes'
+    rospy.Rate(50) and rospy.get_time(); each step waits for the DBW node's commands. 30 s
+    of sim time: the car stops before the first stop line on red."""
+    monkeypatch.setenv("SDC_GYM_ROS_DEVEL", str(devel))
+    env = gym.make("sdc_gym/TrackLoop-v0", config={"track": TRACK, "light_config": LIGHTS,
+                                                   "max_duration": 30.0})
+    session = CapstoneSession(
+        env, graph_command("--master-port", "{master_port}", "--use-sim-time"),
+        CapstoneOptions(cwd=str(tmp_path), log_path=str(tmp_path / "graph.log"),
+                        startup_timeout=120.0, sim_time=True))
+    _, info = env.reset(seed=SIM_SEED)
+    session.start()
+    graph: list[int] = []
+    try:
+        for step in range(1_000_000):
+            _, _, terminated, truncated, info = env.step(session.action(info))
+            if step == 10:
+                graph = descendants(session.process.reaper_pid)
+            if terminated or truncated:
+                break
+    finally:
+        session.close()
+    summary, extras = info["summary"], session.extras()
+    log = (tmp_path / "graph.log").read_text()
+    assert summary["termination_reason"] == "max_duration", log[-2000:]
+    assert summary["red_light_violations"] == 0
+    red_stops = [stop for stop in summary["stops"] if stop["light_state"] == RED]
+    assert [stop["line"] for stop in red_stops] == [0], summary["stops"]
+    assert -3.0 < red_stops[0]["offset_m"] < 0.0
+    assert summary["max_cross_track_error"] < 1.0
+    # Lock-step with the clock: one tick and one exchange per step (+ the start-up's).
+    steps = round(info["time"] / 0.02)
+    offset_ticks = round(extras["stack_clock_offset"] / 0.02)
+    assert extras["stack_clock_ticks"] == extras["stack_exchanges"] == steps + offset_ticks
+    assert extras["stack_missed_ticks"] < steps // 100, extras
+    # The stack node's ROS time: only the clock's values (20 ms steps), never past it,
+    # and one loop of its rospy.Rate(50) per tick (100 loops = 2 s of ROS time).
+    reports = [line.split() for line in log.splitlines() if line.startswith("stack loop ")]
+    now_ns = [int(words[6]) for words in reports]
+    assert len(reports) > 10 and all(t % 20_000_000 == 0 for t in now_ns)
+    assert all(abs(float(words[4]) - int(words[6]) / 1e9) < 1e-9 for words in reports)
+    assert max(now_ns) <= round((info["time"] + extras["stack_clock_offset"]) * 1e9)
+    gaps = [b - a for a, b in itertools.pairwise(now_ns)]
+    assert sorted(gaps)[len(gaps) // 2] == 2_000_000_000, gaps
+    assert "/use_sim_time set" in log
+    assert len(graph) >= 6, graph
+    assert all_gone([*graph, session.process.reaper_pid, extras["stack_clock_pid"]]) == []
     env.close()

@@ -32,7 +32,7 @@ import sys
 import tempfile
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Final
 
@@ -120,11 +120,14 @@ class PlannerProcess:
             ``None``: a new file in the system's temporary folder.
         log_limit: the log file's largest size in bytes; more output floods it
             (:attr:`log_flooded`) and ends the planner.
+        env: variables set for the planner on top of this process's environment (e.g.
+            a ROS stack's ``ROS_MASTER_URI``).
     """
 
     def __init__(self, command: str | Sequence[str], *, cwd: str | os.PathLike[str] | None = None,
                  port: int | None = None, log_path: str | os.PathLike[str] | None = None,
-                 log_limit: int = DEFAULT_LOG_LIMIT_BYTES) -> None:
+                 log_limit: int = DEFAULT_LOG_LIMIT_BYTES,
+                 env: Mapping[str, str] | None = None) -> None:
         arguments = shlex.split(command) if isinstance(command, str) else list(command)
         if not arguments:
             raise PlannerNotFound("the planner command is empty")
@@ -137,6 +140,7 @@ class PlannerProcess:
         self.cwd = Path(cwd) if cwd is not None else Path.cwd()
         self.log_path = Path(log_path) if log_path is not None else None
         self.log_limit = int(log_limit)
+        self.env = dict(env or {})
         self._reaper: subprocess.Popen[bytes] | None = None
         self._log: CappedLog | None = None
         self._control: int | None = None  # our end of the reaper's stdin: closing it = stop
@@ -206,7 +210,8 @@ class PlannerProcess:
                 [sys.executable, str(REAPER_SCRIPT), str(os.getpid()), str(status_write),
                  "--", *self.arguments],
                 cwd=self.cwd, stdin=control_read, stdout=log_write, stderr=log_write,
-                pass_fds=(status_write,), start_new_session=True)
+                pass_fds=(status_write,), start_new_session=True,
+                env={**os.environ, **self.env} if self.env else None)
         except BaseException:
             os.close(status_read)
             os.close(control_write)

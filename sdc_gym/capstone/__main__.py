@@ -22,6 +22,7 @@ from typing import Any
 
 from sdc_gym.capstone.protocol import DEFAULT_HOST, IMAGE_FORMATS
 from sdc_gym.capstone.session import CapstoneOptions, CapstoneSession, run_episode
+from sdc_gym.capstone.sim_clock import DBW_COMMAND_TOPICS, DEFAULT_ROS_PYTHON
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -51,6 +52,20 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--lockstep", action="store_true",
                         help="wait for the server to handle each telemetry message and run "
                              "as fast as the stack keeps up (default: real time)")
+    parser.add_argument("--sim-time", action="store_true",
+                        help="own the stack's /clock (a stack launched with /use_sim_time "
+                             "true): each step ticks it and waits for the DBW node's "
+                             "commands, then exchanges telemetry in lock-step")
+    parser.add_argument("--ros-master-uri", default=None, metavar="URI",
+                        help="sim time: the stack's master (default: a free port for a "
+                             "{master_port} argument of --stack, else $ROS_MASTER_URI, "
+                             "else http://127.0.0.1:11311)")
+    parser.add_argument("--ros-python", default=DEFAULT_ROS_PYTHON, metavar="PYTHON",
+                        help="sim time: the Python with rospy that runs the clock node")
+    parser.add_argument("--clock-topics", nargs="+", default=list(DBW_COMMAND_TOPICS),
+                        metavar="TOPIC", help="sim time: the topics that answer a tick")
+    parser.add_argument("--tick-timeout", type=float, default=1.0, metavar="S",
+                        help="sim time: wall seconds before an unanswered tick is missed")
     parser.add_argument("--track", default=None, help="waypoint CSV (default: sdc-gym's "
                                                       "own loop); the stack's own file")
     parser.add_argument("--light-config", default=None, help="traffic-light YAML")
@@ -90,14 +105,20 @@ def main(argv: list[str] | None = None) -> int:
         options = CapstoneOptions(
             host=args.host, port=args.port, cwd=args.stack_cwd, log_path=args.stack_log,
             startup_timeout=args.startup_timeout, reply_timeout=args.reply_timeout,
-            lockstep=args.lockstep, report_every=args.report_every,
+            lockstep=args.lockstep, sim_time=args.sim_time,
+            ros_master_uri=args.ros_master_uri, ros_python=args.ros_python,
+            clock_topics=tuple(args.clock_topics), tick_timeout=args.tick_timeout,
+            report_every=args.report_every,
             image_every=args.image_every, image_width=args.image_size[0],
             image_height=args.image_size[1], image_format=args.image_format)
         env = gym.make("sdc_gym/TrackLoop-v0", config=config,
                        render_mode="human" if args.render else None)
     except (ValueError, TypeError) as error:
         parser.error(str(error))
-    session = CapstoneSession(env, args.stack, options)
+    try:
+        session = CapstoneSession(env, args.stack, options)
+    except ValueError as error:
+        parser.error(str(error))
     summary = run_episode(env, session, seed=args.seed)
     env.close()
     text = json.dumps(summary, indent=2, default=str)

@@ -41,7 +41,15 @@ class StackStalled(BridgeError):
     reason = "stack_stalled"
 
 
+class RosClockFailed(BridgeError):
+    """Sim time: sdc-gym's ``/clock`` node could not run on the stack's master (no rospy,
+    no master, ``/use_sim_time`` not true) or ended."""
+
+    reason = "ros_clock_failed"
+
+
 CAPSTONE_FAULT_REASONS: tuple[str, ...] = tuple(
     cls.reason for cls in (PlannerNotFound, PlannerDied, PlannerLogFlooded, StackNeverConnected,
-                           ProtocolMismatch, StackDisconnected, MalformedCommand, StackStalled))
+                           ProtocolMismatch, StackDisconnected, MalformedCommand, StackStalled,
+                           RosClockFailed))
 """Every reason a capstone episode can end on besides the env's own."""

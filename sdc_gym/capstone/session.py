@@ -16,7 +16,11 @@ released and the wheel straight (the original car waits the same way).
 Timing: ``lockstep=False`` (default, the original's only mode) paces the env to wall time
 (a step is never taken before its simulated time) and sends telemetry without waiting;
 ``lockstep=True`` waits after every telemetry message until the server has handled it
-(see :mod:`sdc_gym.capstone.client`) and runs as fast as the stack keeps up. Rates, in
+(see :mod:`sdc_gym.capstone.client`) and runs as fast as the stack keeps up.
+``sim_time=True`` (a stack launched with ``/use_sim_time`` true) adds sdc-gym's
+``/clock`` (:mod:`sdc_gym.capstone.sim_clock`): each step first sets the stack's clock to
+the env's time and waits for the DBW node's commands of that tick, then exchanges
+telemetry in lock-step (``docs/capstone.md``, "Time", says when a step is handled). Rates, in
 env steps: telemetry every step, ``control`` and ``trafficlights`` every
 ``report_every`` steps, ``image`` every ``image_every`` steps (0: no camera, the
 default; the original's camera checkbox starts off).
@@ -37,9 +41,10 @@ from sdc_gym.bridge.errors import PlannerLogFlooded
 from sdc_gym.bridge.planner_log import DEFAULT_LOG_LIMIT_BYTES
 from sdc_gym.bridge.process import PlannerProcess, free_port
 from sdc_gym.capstone.client import StyxClient
-from sdc_gym.capstone.errors import StackDisconnected, StackStalled
+from sdc_gym.capstone.errors import RosClockFailed, StackDisconnected, StackStalled
 from sdc_gym.capstone.protocol import (
     BRAKE,
+    COMMAND_EVENTS,
     CONTROL,
     DEFAULT_HOST,
     DEFAULT_JPEG_QUALITY,
@@ -50,15 +55,18 @@ from sdc_gym.capstone.protocol import (
     TELEMETRY,
     THROTTLE,
     TRAFFIC_LIGHTS,
+    CarReport,
     car_report,
     control_fields,
     encode_image,
     telemetry_fields,
     traffic_light_fields,
 )
+from sdc_gym.capstone.sim_clock import DBW_COMMAND_TOPICS, DEFAULT_ROS_PYTHON, RosClock
 from sdc_gym.vehicle.dbw_vehicle import PHYSICS_DT
 
 PORT_PLACEHOLDER: Final = "{port}"
+MASTER_PORT_PLACEHOLDER: Final = "{master_port}"  # a free port for the stack's ROS master
 DEATH_WAIT_S: Final = 1.0  # for the exit status of a stack whose connection ended
 
 
@@ -77,6 +85,15 @@ class CapstoneOptions:
             (while ``dbw_enable`` is on; ``startup_timeout`` before its first command),
             before the episode ends ``stack_stalled``.
         lockstep: step as fast as the stack keeps up instead of in real time.
+        sim_time: own the stack's ``/clock`` (implies lock-step): for a stack launched
+            with ``/use_sim_time`` true on the master at ``ros_master_uri`` (``None``: a
+            free port when the command has ``{master_port}``, else ``$ROS_MASTER_URI``,
+            else roscore's default; a stack started here gets it as its
+            ``ROS_MASTER_URI``); ``ros_python`` runs the clock
+            node; ``clock_topics`` answer a tick (the DBW node's commands); a tick they
+            have not all answered within ``tick_timeout`` wall s is *missed*: the step
+            goes on with the commands held (``reply_timeout`` of them ends the episode
+            ``stack_stalled``).
         report_every, image_every: env steps between ``control``/``trafficlights`` and
             between ``image`` messages (0: never).
         image_width, image_height, image_format, image_quality: the camera frame.
@@ -90,6 +107,11 @@ class CapstoneOptions:
     startup_timeout: float = 30.0
     reply_timeout: float = 5.0
     lockstep: bool = False
+    sim_time: bool = False
+    ros_master_uri: str | None = None
+    ros_python: str = DEFAULT_ROS_PYTHON
+    clock_topics: tuple[str, ...] = DBW_COMMAND_TOPICS
+    tick_timeout: float = 1.0
     report_every: int = 1
     image_every: int = 0
     image_width: int = 800
@@ -98,7 +120,7 @@ class CapstoneOptions:
     image_quality: int = DEFAULT_JPEG_QUALITY
 
     def __post_init__(self) -> None:
-        for name in ("startup_timeout", "reply_timeout"):
+        for name in ("startup_timeout", "reply_timeout", "tick_timeout"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"CapstoneOptions.{name} must be > 0 s, got "
                                  f"{getattr(self, name)!r}")
@@ -113,6 +135,14 @@ class CapstoneOptions:
         if self.image_format not in IMAGE_FORMATS:
             raise ValueError(f"CapstoneOptions.image_format must be one of {IMAGE_FORMATS}, "
                              f"got {self.image_format!r}")
+        topics = self.clock_topics
+        if isinstance(topics, str) or not all(isinstance(t, str) for t in topics):
+            raise ValueError(f"CapstoneOptions.clock_topics must be a sequence of topic "
+                             f"names, got {topics!r}")
+        object.__setattr__(self, "clock_topics", tuple(topics))  # a list from JSON
+        if self.sim_time and not self.clock_topics:
+            raise ValueError("CapstoneOptions.clock_topics must name at least one topic "
+                             "that answers a tick (the DBW node's commands by default)")
         if self.port is not None and not 0 < self.port < 65536:
             raise ValueError(f"CapstoneOptions.port must be in 1..65535, got {self.port}")
 
@@ -137,10 +167,34 @@ class CapstoneSession:
         if port is None:
             port = free_port() if command and PORT_PLACEHOLDER in command else DEFAULT_PORT
         self.port = int(port)
+        self.ros_master_uri = self.options.ros_master_uri
+        if command is not None and MASTER_PORT_PLACEHOLDER in command:
+            if self.ros_master_uri is not None:
+                raise ValueError(f"the stack command has {MASTER_PORT_PLACEHOLDER} and "
+                                 f"ros_master_uri is {self.ros_master_uri!r}: give one")
+            master_port = free_port()
+            while master_port == self.port:
+                master_port = free_port()
+            command = command.replace(MASTER_PORT_PLACEHOLDER, str(master_port))
+            self.ros_master_uri = f"http://127.0.0.1:{master_port}"
+        # The stack's nodes and sdc-gym's clock node on one master.
+        stack_env = None if self.ros_master_uri is None else {
+            "ROS_MASTER_URI": self.ros_master_uri}
         self.process = (None if command is None else PlannerProcess(
             command, cwd=self.options.cwd, port=self.port, log_path=self.options.log_path,
-            log_limit=self.options.log_limit))
+            log_limit=self.options.log_limit, env=stack_env))
         self.client = StyxClient(self.options.host, self.port)
+        self.clock: RosClock | None = None
+        if self.options.sim_time:
+            clock_log = (None if self.options.log_path is None
+                         else f"{self.options.log_path}.clock")
+            self.clock = RosClock(self.ros_master_uri, self.options.clock_topics,
+                                  self.options.ros_python, clock_log)
+        self.missed_ticks = 0  # sim time: ticks the stack did not answer in time
+        self.late_steps = 0  # sim time: answered ticks whose commands came a step late
+        self.clock_offset_ns = 0  # sim time: ROS time - env time (the start-up's ticks)
+        self.startup_wall = 0.0  # sim time: wall s until the stack's first command
+        self._step_ns = round(self._step_s * 1e9)
         self._camera: Any = None
         self._steps = 0
         self._wall_start: float | None = None
@@ -152,6 +206,8 @@ class CapstoneSession:
         if self.process is not None:
             self.process.start()
         self.client.connect(self.options.startup_timeout, alive=self.check_stack)
+        if self.clock is not None:  # the styx server is up, so its master is
+            self.clock.start(self.options.startup_timeout)
 
     def check_stack(self) -> None:
         """Raise when the stack's process died or flooded its log."""
@@ -166,6 +222,8 @@ class CapstoneSession:
     def close(self) -> None:
         """Disconnect and end the stack's whole process tree (safe to repeat)."""
         self.client.close()
+        if self.clock is not None:
+            self.clock.close()
         if self.process is not None:
             self.process.stop()
 
@@ -175,16 +233,32 @@ class CapstoneSession:
         to step with; raises a :class:`~sdc_gym.bridge.errors.BridgeError` on a fault."""
         try:
             return self._action(info)
-        except (StackDisconnected, StackStalled) as error:
+        except (StackDisconnected, StackStalled, RosClockFailed) as error:
             # A stack that died closes its socket first: name the death, not its symptom.
             if self.process is not None and self.process.wait_exit(DEATH_WAIT_S) is not None:
                 self.check_stack()
             raise error
 
     def _action(self, info: dict[str, Any]) -> NDArray[np.float32]:
-        options = self.options
         self.check_stack()
         car = car_report(info, self._centre_offset, self._road_wheel_ratio)
+        self._send(info, car)
+        if self.clock is not None and self._steps == 0 and car.dbw_enabled:
+            self._start_up(info, car)
+        self._steps += 1
+        commands = self.client.commands()
+        self._check_silence(commands, car.dbw_enabled)
+        path = self.client.take_drawline()
+        if path is not None:
+            self.env.set_debug_path(path)
+        action = np.array([commands.get(THROTTLE, 0.0), commands.get(BRAKE, 0.0),
+                           commands.get(STEER, 0.0)])
+        return np.clip(action, self._low, self._high).astype(np.float32)
+
+    def _send(self, info: dict[str, Any], car: CarReport) -> None:
+        """This step's messages (sim time: the clock's tick first), telemetry last."""
+        options = self.options
+        answered = self._tick(info, car.dbw_enabled) if self.clock is not None else False
         if self._steps % options.report_every == 0:
             self.client.emit(CONTROL, control_fields(car))
             world = self.env.world
@@ -195,20 +269,43 @@ class CapstoneSession:
         if options.image_every and self._steps % options.image_every == 0:
             self.client.emit(IMAGE, {"image": self.image(info)})
         telemetry = telemetry_fields(car)
-        if options.lockstep:
+        if options.lockstep or options.sim_time:
+            before = [self.client.stats.received[event] for event in COMMAND_EVENTS]
             self.client.exchange(telemetry, options.reply_timeout)
+            if answered and any(self.client.stats.received[event] == count
+                                for event, count in zip(COMMAND_EVENTS, before, strict=True)):
+                self.late_steps += 1  # the server had not had them all yet
         else:
             self._pace()
             self.client.emit(TELEMETRY, telemetry)
-        self._steps += 1
-        commands = self.client.commands()
-        self._check_silence(commands, car.dbw_enabled)
-        path = self.client.take_drawline()
-        if path is not None:
-            self.env.set_debug_path(path)
-        action = np.array([commands.get(THROTTLE, 0.0), commands.get(BRAKE, 0.0),
-                           commands.get(STEER, 0.0)])
-        return np.clip(action, self._low, self._high).astype(np.float32)
+
+    def _start_up(self, info: dict[str, Any], car: CarReport) -> None:
+        """Sim time: step 0's messages again, one tick later each time, until the stack's
+        first command (``startup_timeout`` s after connecting at most). The env waits for
+        the stack, the car at its start and the lights as they are, so how long the
+        nodes take to start on the wall clock does not change the episode; ROS time is
+        the env's time + :attr:`clock_offset_ns` from then on."""
+        start = time.perf_counter()
+        while not self.client.commands():
+            self._check_silence({}, car.dbw_enabled)
+            self.check_stack()
+            self.clock_offset_ns += self._step_ns
+            self._send(info, car)
+        self.startup_wall = time.perf_counter() - start
+
+    def _tick(self, info: dict[str, Any], dbw_enabled: bool) -> bool:
+        """Sim time: set the stack's ``/clock`` to the env's time (+ the start-up's
+        offset) and wait for its answer; whether every watched topic answered. Until the
+        stack drives (and while DBW is off) a tick waits one step of wall time at most:
+        nodes that are starting see time pass no faster than real time."""
+        assert self.clock is not None
+        driving = self._driving and dbw_enabled
+        wait = self.options.tick_timeout if driving else self._step_s
+        answer = self.clock.tick(self.clock_offset_ns + round(float(info["time"]) * 1e9),
+                                 wait)
+        if driving and answer.missing:
+            self.missed_ticks += 1
+        return not answer.missing
 
     def _pace(self) -> None:
         """Real time: wait until the wall clock reaches this step's simulated time."""
@@ -258,6 +355,13 @@ class CapstoneSession:
             "stack_wait_time": stats.wait_time,
             "stack_protocol": self.client.protocol,
         }
+        if self.clock is not None:
+            extras.update({"stack_clock_ticks": self.clock.ticks,
+                           "stack_missed_ticks": self.missed_ticks,
+                           "stack_late_steps": self.late_steps,
+                           "stack_clock_offset": self.clock_offset_ns / 1e9,
+                           "stack_startup_wall": self.startup_wall,
+                           "stack_clock_pid": self.clock.pid})
         if self.process is not None:
             extras["stack_pid"] = self.process.pid
             extras["stack_log"] = str(self.process.log_path)

@@ -1,7 +1,13 @@
 """The tests' ROS 1 graph in one command, as ``roslaunch launch/styx.launch`` starts a team's:
-roscore on a free master port, then the styx server node and the stack node.
+roscore (on ``--master-port``, else a free port), then the styx server node and the stack
+node.
 
-    python launch_graph.py --port PORT --track wp_yaw_const.csv --lights sim.yaml
+    python launch_graph.py --port PORT --track wp_yaw_const.csv --lights sim.yaml \
+        [--master-port PORT] [--use-sim-time]
+
+``--use-sim-time`` sets the parameter ``/use_sim_time`` to true on the master before the
+nodes start, as a launch file's ``<param name="/use_sim_time" value="true"/>`` does: the
+nodes (unchanged) then take their time from ``/clock``.
 
 ``SDC_GYM_ROS_DEVEL`` must name the catkin workspace's python folder (see
 ``ros_paths.py``). ROS's logs and home go to ``./ros_home`` (the working directory).
@@ -16,6 +22,7 @@ import socket
 import subprocess
 import sys
 import time
+import xmlrpc.client
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -32,8 +39,10 @@ def main() -> int:
     parser.add_argument("--port", type=int, required=True)
     parser.add_argument("--track", required=True)
     parser.add_argument("--lights", required=True)
+    parser.add_argument("--master-port", type=int, default=None)
+    parser.add_argument("--use-sim-time", action="store_true")
     args = parser.parse_args()
-    master = free_port()
+    master = args.master_port or free_port()
     home = Path.cwd() / "ros_home"
     env = {**os.environ, "ROS_MASTER_URI": f"http://127.0.0.1:{master}",
            "ROS_HOSTNAME": "127.0.0.1", "ROS_HOME": str(home), "ROS_LOG_DIR": str(home / "log")}
@@ -48,6 +57,18 @@ def main() -> int:
             print("roscore did not start", flush=True)
             return 2
         time.sleep(0.1)
+    if args.use_sim_time:  # what roslaunch does for a <param>: the master's setParam
+        proxy = xmlrpc.client.ServerProxy(env["ROS_MASTER_URI"])
+        for _ in range(100):  # the port opens before the master serves
+            try:
+                code, message, _ = proxy.setParam("/launch_graph", "/use_sim_time", True)
+                break
+            except (ConnectionError, xmlrpc.client.Fault, OSError):
+                time.sleep(0.1)
+        else:
+            print("the master did not take /use_sim_time", flush=True)
+            return 2
+        print(f"/use_sim_time set: {code} {message}", flush=True)
     processes.append(subprocess.Popen([sys.executable, str(HERE / "styx_node.py"), "--port",
                                        str(args.port)], env=env))
     processes.append(subprocess.Popen([sys.executable, str(HERE / "stack_node.py"),

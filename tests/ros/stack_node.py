@@ -6,6 +6,9 @@ updater, detector (the lights' ground truth from ``/vehicle/traffic_lights``, as
 developed with), pure pursuit and twist controller (:class:`tests.stacks.styx_standin.
 StackBridge`) at ``rospy.Rate(50)``, and publishes ``/vehicle/throttle_cmd``,
 ``/vehicle/brake_cmd`` (torque), ``/vehicle/steering_cmd`` and ``/final_waypoints``.
+Every ``REPORT_EVERY`` loops it prints its loop count and ROS time (``rospy.get_time()``
+and ``rospy.Time.now()`` in ns): on the wall clock, or on ``/clock`` when the graph runs
+with ``/use_sim_time`` true; the node's code is the same in both.
 
     python stack_node.py --track wp_yaw_const.csv --lights sim_traffic_light_config.yaml
 """
@@ -31,6 +34,7 @@ from styx_msgs.msg import Lane, TrafficLightArray, Waypoint  # noqa: E402
 from tests.stacks.styx_standin import StackBridge  # noqa: E402
 
 RATE_HZ = 50
+REPORT_EVERY = 100
 
 
 def main() -> None:
@@ -84,10 +88,15 @@ def main() -> None:
     rospy.Subscriber("/vehicle/dbw_enabled", Bool, lambda m: bridge.publish_dbw_status(m.data))
     rospy.Subscriber("/vehicle/traffic_lights", TrafficLightArray, on_lights)
     rate = rospy.Rate(RATE_HZ)
-    print("stack running", flush=True)
+    print(f"stack running, ROS time {rospy.get_time()!r}", flush=True)
+    loops = 0
     while not rospy.is_shutdown():
         if seen["pose"]:
             bridge.spin()
+        loops += 1
+        if loops % REPORT_EVERY == 0:
+            print(f"stack loop {loops} get_time {rospy.get_time()!r} now_ns "
+                  f"{rospy.Time.now().to_nsec()}", flush=True)
         rate.sleep()
 
 
