@@ -544,6 +544,6 @@ def test_an_agent_that_cannot_drive_the_env_is_refused_before_any_episode(tmp_pa
                        "--episodes", "1", "--workers", "1", "--no-progress"])
     assert str(raised.value) == (
         "--agents: agent 'dbw_ground_truth' drives sdc_gym/TrackLoop-v0, not "
-        "sdc_gym/HighwayLoop-v0; the agents for sdc_gym/HighwayLoop-v0: fsm_bold, "
+        "sdc_gym/HighwayLoop-v0; the agents for sdc_gym/HighwayLoop-v0: dqn_highway, fsm_bold, "
         "fsm_bold_kf, fsm_conservative, fsm_conservative_kf, lane_keeping")
     assert not (tmp_path / "run").exists()
