@@ -36,13 +36,13 @@ DQN = "agents/highway/policies/dqn_highway.zip"
      "traffic.car_count to at most 64"),
     ("sdc_gym/HighwayLoopBehavior-v0", 4096,
      {"decision_frames": 50_000, "highway": {"map": "oval", "max_duration": 1000.0}},
-     "HighwayLoopBehavior-v0: num_envs x decision_frames must be at most 4,194,304 "
+     "HighwayLoopBehavior-v0: num_envs x decision_frames must be at most 1,048,576 "
      "(physics frames of one batch step: its per-frame buffers), got 4,096 x 50,000 = "
-     "204,800,000; lower num_envs to at most 83 or decision_frames to at most 1,024"),
-    (HIGHWAY, 2048, {"map": "oval", "steps_per_action": 1000, "max_duration": 30.0,
+     "204,800,000; lower num_envs to at most 20 or decision_frames to at most 256"),
+    (HIGHWAY, 512, {"map": "oval", "steps_per_action": 1000, "max_duration": 30.0,
                      "traffic": {"car_count": 40}},
      "HighwayLoop-v0: num_envs x traffic.car_count x steps_per_action must be at most "
-     "67,108,864 (car updates of one step: its time), got 2,048 x 40 x 1,000 = 81,920,000; "
+     "16,777,216 (car updates of one step: its time), got 512 x 40 x 1,000 = 20,480,000; "
      "lower one of them"),
     (TRACK, 70, {"track": "site", "camera": {"enabled": True}},  # the original's 800 x 600
      "TrackLoop-v0: num_envs x camera.width x height must be at most 33,177,600 (camera "
@@ -50,9 +50,9 @@ DQN = "agents/highway/policies/dqn_highway.zip"
      "at most 69 or camera.width x height to at most 473,965"),
     ("sdc_gym/TrackLoopBehavior-v0", 4096, {"decision_period_s": 1000.0},
      "TrackLoopBehavior-v0: num_envs x frames per decision (decision_period_s / 0.02 s) "
-     "must be at most 4,194,304 (physics frames of one batch step: its per-frame buffers), "
-     "got 4,096 x 50,000 = 204,800,000; lower num_envs to at most 83 or frames per decision "
-     "(decision_period_s / 0.02 s) to at most 1,024"),
+     "must be at most 1,048,576 (physics frames of one batch step: its per-frame buffers), "
+     "got 4,096 x 50,000 = 204,800,000; lower num_envs to at most 20 or frames per decision "
+     "(decision_period_s / 0.02 s) to at most 256"),
 ])
 def test_a_batchs_products_are_refused_before_any_allocation(env_id, num_envs, config,
                                                                message):
@@ -63,14 +63,17 @@ def test_a_batchs_products_are_refused_before_any_allocation(env_id, num_envs, c
 
 
 def test_the_products_admit_their_bounds_and_every_single_env():
-    check_batch_sizes("x", 4096, frames_per_step=1024, path_points=1024, cars=16,
-                      camera_pixels=8100)  # each product at its bound (16 x 1,024 x 4,096)
+    check_batch_sizes("x", 4096, frames_per_step=256, path_points=1024, cars=16,
+                      camera_pixels=8100)  # each product at its bound (16 x 256 x 4,096)
     with pytest.raises(ConfigError, match=r"num_envs x path_points .* got 4,096 x 1,025"):
         check_batch_sizes("x", 4096, frames_per_step=1, path_points=1025)
-    # The batch of one at every single-env bound (the car updates: 5e7 of 6.7e7).
+    # The batch of one at every single-env bound, but for its car updates.
     check_batch_sizes("x", 1, frames_per_step=bounds.MAX_STEP_FRAMES,
-                      path_points=bounds.MAX_PATH_POINTS, cars=bounds.MAX_CAR_COUNT,
+                      path_points=bounds.MAX_PATH_POINTS, cars=16,
                       camera_pixels=bounds.MAX_CAMERA_PIXELS)
+    with pytest.raises(ConfigError, match=r"got 1 x 1,000 x 50,000 = 50,000,000"):
+        check_batch_sizes("x", 1, frames_per_step=bounds.MAX_STEP_FRAMES,
+                          cars=bounds.MAX_CAR_COUNT)
     assert bounds.MAX_BATCH_CAMERA_PIXELS == 33_177_600
 
 
@@ -78,7 +81,7 @@ def test_an_sb3_vec_env_is_bounded_by_the_same_products():
     from sdc_gym.envs.sb3 import SB3VecEnv
 
     with pytest.raises(ConfigError, match=r"^HighwayLoopBehavior-v0: num_envs x "
-                       r"decision_frames must be at most 4,194,304"):
+                       r"decision_frames must be at most 1,048,576"):
         SB3VecEnv("sdc_gym/HighwayLoopBehavior-v0", 4096,
                   {"decision_frames": 2000, "highway": {"map": "oval"}})
 

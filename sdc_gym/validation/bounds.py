@@ -65,19 +65,20 @@ def check_env_count(value: object, key: str = "num_envs") -> int:
 # 10,000 path points are 41 M points, 655 MB per path array), so the products are bounded
 # too, before any array of the batch is allocated. A single env is the batch of one: the
 # products hold for it as well (and admit every single env within the bounds above, but
-# for the step's car updates: 1,000 cars x 50,000 frames is 5e7 of the 6.7e7).
+# for the step's car updates: 1,000 cars x 50,000 frames is 5e7, past the 1.7e7).
 MAX_BATCH_PATH_POINTS: Final = 4_194_304
 """num_envs x path_points (4,096 envs of 1,024 points): the batch's path arrays and its
 action space, 16 bytes a point each."""
 MAX_BATCH_CARS: Final = 262_144
 """num_envs x cars (traffic cars of the highway, obstacles of the track; 4,096 envs of 64):
 the batch's traffic, sensor-fusion and collision arrays."""
-MAX_BATCH_FRAMES: Final = 4_194_304
+MAX_BATCH_FRAMES: Final = 1_048_576
 """num_envs x physics frames per step (a decision of a behavior env): the per-frame buffers
-of one step (4,096 envs of 1,024 frames, 20 s each)."""
-MAX_BATCH_CAR_UPDATES: Final = 67_108_864
-"""num_envs x cars x frames per step: the car updates one ``step()`` computes (the time of a
-step; about 2-4 s at the measured 20-40 M car updates per second, benchmarks/hostile_costs.py)."""
+of one step (4,096 envs of 256 frames, 5.12 s each; 4,096 x 1,024 frames measured 6.65 GB and
+88 s a step on the highway, benchmarks/hostile_costs.py --batches)."""
+MAX_BATCH_CAR_UPDATES: Final = 16_777_216
+"""num_envs x cars x frames per step: the car updates one ``step()`` computes (4,096 envs of
+16 cars for 256 frames; a single env of 1,000 cars steps at most 16,777 frames at once)."""
 MAX_BATCH_CAMERA_PIXELS: Final = 4 * MAX_CAMERA_PIXELS
 """num_envs x camera pixels (four 4K UHD images: 33,177,600 px; 69 envs of the original
 800 x 600): the batch's camera observations of every step."""
