@@ -77,7 +77,14 @@ import gymnasium as gym
 from rich.console import Console
 
 from sdc_agents import capstone, external
-from sdc_agents.registry import AGENT_KINDS, AGENTS, check_agent_env, parse_agent_spec
+from sdc_agents.registry import (
+    AGENT_KINDS,
+    AGENTS,
+    POLICY_KINDS,
+    check_agent_builds,
+    check_agent_env,
+    parse_agent_spec,
+)
 from sdc_configs import config_path
 from sdc_evaluation import run_folders, statistics
 from sdc_evaluation.analysis import analyse, terminal_output
@@ -369,6 +376,22 @@ def probe_env(env_id: str, env_config: dict[str, Any]) -> EnvProbe:
         env.close()
 
 
+def check_policies_build(env_id: str, env_config: dict[str, Any], specs: list[str]) -> None:
+    """Each trained policy of ``specs`` built once on the env, as every episode builds it
+    (its model loaded, its spaces checked against the behavior env under it): a policy of
+    another env or config is one error before any episode, not a failure in each."""
+    if not any(parse_agent_spec(spec)[0] in POLICY_KINDS for spec in specs):
+        return
+    env = gym.make(env_id, config=env_config)
+    try:
+        for spec in specs:
+            check_agent_builds(spec, env)
+    except (ValueError, TypeError) as error:
+        raise SystemExit(f"--agents: {spec}: {error}") from None
+    finally:
+        env.close()
+
+
 def output_folder(args: argparse.Namespace) -> Path:
     """The run's folder: ``--output`` (checked: never overwritten silently), else a new
     timestamped one under results/."""
@@ -406,6 +429,7 @@ def main(argv: list[str] | None = None) -> dict[str, Any]:
         probe = probe_env(env_id, env_config)
     except (gym.error.Error, ValueError, TypeError) as error:
         raise SystemExit(f"cannot make {env_id} with config {env_config}: {error}") from None
+    check_policies_build(env_id, env_config, specs_given)
     workers = external.fixed_port_workers(args, specs_given, args.workers or os.cpu_count()
                                           or 1)
     if capstone.fixed_port(args, specs_given):  # stacks on one port run one at a time

@@ -25,11 +25,12 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from sdc_agents.committed_policies import DRIVEN_ENV
 from sdc_gym.config import excerpt, resolve_config
 from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
 from sdc_gym.envs.track_behavior import TrackLoopBehaviorEnv
 from sdc_gym.stack.highway.behavior import BehaviorDecision
-from sdc_gym.stack.highway.decisions import DecisionExecutor, HighwayDecision
+from sdc_gym.stack.highway.decisions import ACTION_NAMES, DecisionExecutor, HighwayDecision
 from sdc_gym.stack.highway.features import BehaviorFeatures
 from sdc_gym.stack.highway.layered import LayeredHighwayAgent
 from sdc_gym.stack.highway.motion import MotionParameters, SeedMotionPlanner
@@ -37,7 +38,11 @@ from sdc_gym.stack.highway.perception import Perception, PerceptionParameters
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import WorldModel
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent, dbw_stack_for_env
-from sdc_gym.stack.track.decisions import TrackDecisionBehavior, TrackFeatures
+from sdc_gym.stack.track.decisions import (
+    TRACK_ACTION_NAMES,
+    TrackDecisionBehavior,
+    TrackFeatures,
+)
 from sdc_gym.stack.track.detector import GroundTruthLightSource
 from sdc_gym.validation.yaml_files import read_yaml
 
@@ -83,6 +88,80 @@ def load_model(kind: str, path: str | Path) -> Any:
     return getattr(stable_baselines3, kind.upper()).load(model_path, device="cpu")
 
 
+MAX_MODEL_DATA_BYTES = 16 * 2**20
+"""The ``data`` member of an SB3 zip read to name its algorithm (the committed DQN's: 9 kB)."""
+
+
+def check_policy_file(kind: str, path: str | Path, env_id: str) -> None:
+    """``ValueError`` when the policy ``kind:path`` cannot drive ``env_id``, found without
+    loading it (no torch): the env is a path-level env a policy drives; the model is there
+    (an SB3 zip, an RLlib folder); an SB3 zip holds the algorithm ``kind`` names (its
+    policy class's module: ``ppo:`` of a DQN zip was a TypeError in every episode); the
+    env its training config names drives ``env_id``. The spaces are checked when the agent
+    is built (:func:`check_policy_spaces`)."""
+    label = f"{kind}:{path}"
+    if env_id not in DRIVEN_ENV.values():
+        raise ValueError(f"policy {label!r}: a trained policy drives "
+                         f"{' or '.join(DRIVEN_ENV.values())} (its behavior layer), not "
+                         f"{env_id}")
+    model_path = resolve_model_path(path)
+    if kind == RLLIB_KIND:
+        if not model_path.is_dir():
+            raise ValueError(f"policy {label!r}: no RLlib checkpoint folder at {model_path}")
+    else:
+        if not model_path.is_file():
+            raise ValueError(f"policy {label!r}: no model file at {model_path}")
+        module = _sb3_policy_module(model_path, label)
+        if module.split(".")[:2] != ["stable_baselines3", kind]:
+            found = module.split(".")[1] if module.startswith("stable_baselines3.") else module
+            raise ValueError(f"policy {label!r}: {model_path.name} holds a policy of "
+                             f"{module!r} (an SB3 {found.upper()} model), not of "
+                             f"{kind.upper()}: give it as {found}:{path}")
+    trained_on, _ = training_config(path)
+    if trained_on is not None:
+        if trained_on not in DRIVEN_ENV:
+            raise ValueError(f"policy {label!r}: its training config names env "
+                             f"{excerpt(trained_on)}; a policy is trained on one of "
+                             f"{sorted(DRIVEN_ENV)}")
+        if DRIVEN_ENV[trained_on] != env_id:
+            raise ValueError(f"policy {label!r} was trained on {trained_on}: it drives "
+                             f"{DRIVEN_ENV[trained_on]}, not {env_id}")
+
+
+def _sb3_policy_module(model_path: Path, label: str) -> str:
+    """The module of the policy class an SB3 zip names (``stable_baselines3.dqn.policies``),
+    read from its ``data`` JSON without unpickling anything."""
+    import json
+    import zipfile
+
+    try:
+        with zipfile.ZipFile(model_path) as archive:
+            if archive.getinfo("data").file_size > MAX_MODEL_DATA_BYTES:
+                raise ValueError(f"its data member is over {MAX_MODEL_DATA_BYTES:,} bytes")
+            data = json.loads(archive.read("data"))
+        module = data["policy_class"]["__module__"]
+        if not isinstance(module, str):
+            raise TypeError(f"policy_class.__module__ is {excerpt(module)}")
+        return module
+    except (OSError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as error:
+        raise ValueError(f"policy {label!r}: {model_path} is not a stable-baselines3 model "
+                         f"file ({type(error).__name__}: {excerpt(str(error))})") from None
+
+
+def check_policy_spaces(model: Any, observation_space: gym.Space, action_space: gym.Space,
+                        what: str) -> None:
+    """``ValueError`` unless ``model`` (SB3 or :class:`~sdc_agents.rllib_policy.RLlibPolicy`)
+    takes the observations and gives the actions of ``what`` (the behavior env the agent
+    runs under it): the same kind of space, shape and (Discrete) size."""
+    for name, expected in (("observation", observation_space), ("action", action_space)):
+        got = getattr(model, f"{name}_space")
+        same = type(got) is type(expected) and got.shape == expected.shape and (
+            not isinstance(expected, gym.spaces.Discrete) or int(got.n) == int(expected.n))
+        if not same:
+            raise ValueError(f"the policy's {name} space is {got}; {what} has {expected} "
+                             f"(was it trained on another env or config?)")
+
+
 def training_config(path: str | Path) -> tuple[str | None, dict[str, Any]]:
     """The env id and behavior-env config a model was trained with (None, {}: unknown)."""
     model_path = resolve_model_path(path)
@@ -108,10 +187,10 @@ class PolicyBehavior:
 
     def __init__(self, model: Any, features: BehaviorFeatures, executor: DecisionExecutor,
                  cycles_per_decision: int, action: str = "discrete") -> None:
-        if model.observation_space.shape != features.space.shape:
-            raise ValueError(f"the policy expects observations of shape "
-                             f"{model.observation_space.shape}, this road gives "
-                             f"{features.space.shape}")
+        action_space = (gym.spaces.Discrete(len(ACTION_NAMES)) if action == "discrete"
+                        else gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32))
+        check_policy_spaces(model, features.space, action_space,
+                            f"HighwayLoopBehavior-v0 on this road with action {action!r}")
         self.model = model
         self.features = features
         self.executor = executor
@@ -180,14 +259,18 @@ def track_policy_agent(env: gym.Env, kind: str, path: str | Path,
     if unwrapped.track.light_count and "light_states" not in unwrapped.observation_space.spaces:
         raise ValueError("a track policy needs the env config {'observe_light_states': True}")
     model = load_model(kind, path)
+    continuous = cfg["action"] == "continuous"
+    features = TrackFeatures(abs(unwrapped.params.decel_limit))
+    check_policy_spaces(model, features.space,
+                        gym.spaces.Box(-1.0, 1.0, shape=(2,), dtype=np.float32) if continuous
+                        else gym.spaces.Discrete(len(TRACK_ACTION_NAMES)),
+                        f"TrackLoopBehavior-v0 with action {cfg['action']!r}")
 
     def choose(observation: np.ndarray) -> Any:
         action, _ = model.predict(observation, deterministic=True)
         return action
 
-    continuous = cfg["action"] == "continuous"
-    behavior = TrackDecisionBehavior(TrackFeatures(abs(unwrapped.params.decel_limit)),
-                                     continuous=continuous, chooser=choose,
+    behavior = TrackDecisionBehavior(features, continuous=continuous, chooser=choose,
                                      decision_period_s=float(cfg["decision_period_s"]))
     return dbw_stack_for_env(env, GroundTruthLightSource(), behavior=behavior,
                              name=name or f"{kind}:{Path(path).stem}")

@@ -24,8 +24,8 @@ from sdc_agents.track.dbw_agent import NO_THROTTLE_LOWPASS, STEERING_LOWPASS, db
 from sdc_agents.track.tuning import tuned_dbw_agent
 from sdc_gym.stack.track.follower import FollowerParameters
 
-__all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "Agent", "EpisodeAborted", "agent_label",
-           "check_agent_env", "make_agent",
+__all__ = ["AGENTS", "AGENT_ENVS", "AGENT_KINDS", "KIND_ENVS", "Agent", "EpisodeAborted",
+           "agent_label", "check_agent_builds", "check_agent_env", "make_agent",
            "parse_agent_spec"]
 
 
@@ -72,6 +72,8 @@ AGENTS: dict[str, AgentFactory] = {
 }
 
 
+POLICY_KINDS: Final = ("ppo", "dqn", "sac", "a2c", "rllib")
+"""The trained-policy kinds (sdc_agents.policy_agent.POLICY_KINDS, without importing it)."""
 AgentKindFactory = Callable[..., Agent]
 """``factory(argument, env, **options)``: builds the agent of a ``"kind:argument"`` spec."""
 
@@ -109,7 +111,7 @@ AGENT_KINDS: dict[str, AgentKindFactory] = {
     # layer: stable-baselines3 models ("dqn:agents/highway/policies/dqn_highway.zip") and
     # RLlib checkpoints ("rllib:runs/ppo_rllib/model") (agents/policy_agent.py).
     **{kind: (lambda argument, env, _kind=kind, **options: _policy_agent(_kind, argument, env))
-       for kind in ("ppo", "dqn", "sac", "a2c", "rllib")},
+       for kind in POLICY_KINDS},
 }
 """Agent specs ``"kind:argument"``, an agent per argument (a command, a model file...)."""
 
@@ -126,25 +128,68 @@ AGENTS.update(_POLICY_FACTORIES)
 AGENT_ENVS.update({name: (env_id,) for name, env_id in _POLICY_ENVS.items()})
 """The envs each named agent drives: the highway agents send paths (HighwayLoop-v0), the
 drive-by-wire stacks throttle, brake and steering (TrackLoop-v0). The ``kind:argument``
-agents (external planners, trained policies) check their env when they are built."""
+agents by :data:`KIND_ENVS` and their files (:func:`check_agent_env`)."""
+
+
+KIND_ENVS: Final[dict[str, tuple[str, ...]]] = {
+    "fsm": HIGHWAY_PATH_ENVS,  # the seed's FSM from a rule file
+    "external": HIGHWAY_PATH_ENVS,  # the original highway simulator's wire protocol
+    "capstone": TRACK_ENVS,  # the original track simulator's styx server
+    **{kind: (*HIGHWAY_PATH_ENVS, *TRACK_ENVS) for kind in POLICY_KINDS},
+}
+"""The envs each agent kind can drive (a policy: the one its behavior env names, checked
+from its file by :func:`sdc_agents.policy_agent.check_policy_file`)."""
+KIND_DESCRIPTIONS: Final = {"fsm": "the FSM from a rule file",
+                            "external": "an external planner (the original highway's path "
+                                        "protocol)",
+                            "capstone": "a capstone stack (the original track's styx server)",
+                            **{kind: "a trained policy (its behavior layer under the "
+                                     "rule-based stack)" for kind in POLICY_KINDS}}
+
+
+NO_KINDS: Final = "none (a behavior env is driven by its policy: train.py evaluates it there)"
 
 
 def check_agent_env(spec: str, env_id: str) -> None:
-    """``ValueError`` naming the agent, the env and the envs it drives when a named agent
-    cannot drive ``env_id`` (``--agents dbw_ground_truth`` on the highway raised an
-    AttributeError in every episode)."""
+    """``ValueError`` naming the agent, the env and the envs it drives when the agent
+    ``spec`` cannot drive ``env_id``, before any episode starts and without starting
+    anything: a named agent by :data:`AGENT_ENVS` (``--agents dbw_ground_truth`` on the
+    highway raised an AttributeError in every episode), a ``kind:argument`` agent by
+    :data:`KIND_ENVS` (``external:`` planners on the track failed every episode on a
+    highway config key, ``capstone:`` stacks on the highway), a policy by its file too
+    (:func:`sdc_agents.policy_agent.check_policy_file`). The spaces of a policy are
+    checked by :func:`check_agent_builds` on the env itself."""
     kind, name = parse_agent_spec(spec)
     if kind == "fsm":  # a rule file: read and checked before any episode starts
         from sdc_agents.highway.fsm_rules import load_rules
 
         load_rules(name)
-        if env_id not in HIGHWAY_PATH_ENVS:
-            raise ValueError(f"agent {spec!r} (the FSM) drives {', '.join(HIGHWAY_PATH_ENVS)}"
-                             f", not {env_id}")
-    if kind is None and env_id not in AGENT_ENVS[name]:
-        fits = sorted(other for other, envs in AGENT_ENVS.items() if env_id in envs)
-        raise ValueError(f"agent {name!r} drives {', '.join(AGENT_ENVS[name])}, not {env_id}"
-                         f"; the agents for {env_id}: {', '.join(fits) or 'none by name'}")
+    if kind is None:
+        if env_id not in AGENT_ENVS[name]:
+            fits = sorted(other for other, envs in AGENT_ENVS.items() if env_id in envs)
+            raise ValueError(f"agent {name!r} drives {', '.join(AGENT_ENVS[name])}, not "
+                             f"{env_id}; the agents for {env_id}: "
+                             f"{', '.join(fits) or 'none by name'}")
+        return
+    if env_id not in KIND_ENVS[kind]:
+        fits = sorted(other for other, envs in KIND_ENVS.items() if env_id in envs)
+        raise ValueError(f"agent {spec!r} is {KIND_DESCRIPTIONS.get(kind, kind)}: it drives "
+                         f"{', '.join(KIND_ENVS[kind])}, not {env_id}; the kinds for "
+                         f"{env_id}: {', '.join(f'{other}:' for other in fits) or NO_KINDS}")
+    if kind in POLICY_KINDS:
+        from sdc_agents.policy_agent import check_policy_file
+
+        check_policy_file(kind, name, env_id)
+
+
+def check_agent_builds(spec: str, env: gym.Env) -> None:
+    """``ValueError`` when a trained policy (``dqn:``, ``ppo:``, ``rllib:``...) cannot run on
+    ``env`` (an env of the run's id and config): its agent is built once, as every episode
+    builds it, which loads the model and checks its observation and action spaces against
+    the behavior env under it. Other agents start processes when built: nothing to do."""
+    kind, _ = parse_agent_spec(spec)
+    if kind in POLICY_KINDS:
+        make_agent(spec, env)
 
 
 def _valid_agents() -> str:

@@ -3,14 +3,21 @@ bound admits (docs/guarantees.md records the figures).
 
     .venv/bin/python benchmarks/hostile_costs.py
 
+    .venv/bin/python benchmarks/hostile_costs.py --batches   # the batch bounds only
+
 Cases: a 10^9-leaf alias bomb (refused), a flat list at the node bound (the most nodes per
 byte), a 256 KiB flat list (refused at the node bound), aliases past the expansion bound,
-and the largest map file (2 MiB of a circle's rows, 72,000 points).
+and the largest map file (2 MiB of a circle's rows, 72,000 points). With ``--batches``,
+the largest batches each product bound of ``sdc_gym.validation.bounds`` admits, each in a
+process of its own (its peak resident memory, the time to make it, reset it and step it).
 """
 
 from __future__ import annotations
 
+import json
 import math
+import subprocess
+import sys
 import tempfile
 import time
 import tracemalloc
@@ -51,7 +58,59 @@ def alias_bomb() -> str:
     return "\n".join(lines) + "\n"
 
 
+BATCH_RUN = """
+import json, resource, sys, time
+import numpy as np, gymnasium as gym, sdc_gym
+env_id, envs, config, steps = json.loads(sys.argv[1])
+start = time.perf_counter()
+batch = gym.make_vec(env_id, num_envs=envs, vectorization_mode="vector_entry_point",
+                     config=config)
+made = time.perf_counter()
+batch.reset(seed=0)
+reset = time.perf_counter()
+action = np.zeros(batch.action_space.shape, dtype=batch.action_space.dtype)
+for _ in range(steps):
+    batch.step(action)
+stepped = time.perf_counter()
+print(json.dumps([made - start, reset - made, (stepped - reset) / steps,
+                  resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024]))
+"""
+"""One batch made, reset and stepped, in a fresh process (its peak RSS is the batch's)."""
+
+BATCHES = [
+    ("num_envs x path_points: 4,096 x 1,024", "sdc_gym/HighwayLoop-v0", 4096,
+     {"path_points": 1024}),
+    ("num_envs x car_count: 4,096 x 64", "sdc_gym/HighwayLoop-v0", 4096,
+     {"traffic": {"car_count": 64, "spawn_range": 1000.0}}),
+    ("num_envs x steps_per_action: 4,096 x 256, 16 cars (car updates 1.7e7)",
+     "sdc_gym/HighwayLoop-v0", 4096, {"steps_per_action": 256, "traffic": {"car_count": 16}}),
+    ("num_envs x decision frames: 4,096 x 256 (TrackLoopBehavior, 5.12 s)",
+     "sdc_gym/TrackLoopBehavior-v0", 4096, {"decision_period_s": 5.12}),
+    ("num_envs x camera pixels: 4 x 3,840 x 2,160", "sdc_gym/TrackLoop-v0", 4,
+     {"camera": {"enabled": True, "width": 3840, "height": 2160}}),
+    ("num_envs x camera pixels: 69 x 800 x 600", "sdc_gym/TrackLoop-v0", 69,
+     {"camera": {"enabled": True}}),
+]
+"""The largest batch each product bound admits (the others at their defaults)."""
+
+
+def batch_costs(steps: int = 2, only: str | None = None) -> None:
+    print(f"{'batch at its bound':72s} {'make':>7s} {'reset':>7s} {'step':>7s} {'peak RSS':>9s}")
+    for name, env_id, envs, config in BATCHES:
+        if only is not None and only not in name:
+            continue
+        done = subprocess.run([sys.executable, "-c", BATCH_RUN,
+                               json.dumps([env_id, envs, config, steps])],
+                              capture_output=True, text=True, check=True)
+        made, reset, step, rss = json.loads(done.stdout.strip().splitlines()[-1])
+        print(f"{name:72s} {made:6.1f}s {reset:6.1f}s {step:6.2f}s {rss:6.0f} MB", flush=True)
+
+
 def main() -> None:
+    if "--batches" in sys.argv[1:]:  # --batches [TEXT]: the batches whose name has TEXT
+        rest = sys.argv[sys.argv.index("--batches") + 1:]
+        batch_costs(only=rest[0] if rest else None)
+        return
     measured("alias bomb, 10^9 leaves (413 bytes)", lambda: parse_yaml_lines(alias_bomb()))
     flat = "[" + "1," * (MAX_YAML_NODES - 2) + "1]"
     measured(f"flat list at the node bound, {len(flat):,} bytes",

@@ -86,7 +86,8 @@ class HighwayBehaviorWorld:
                 cfg["slow_step_mps"])
         highway_config = {"telemetry_info": False, **cfg["highway"],
                           "steps_per_action": cfg["decision_frames"]}
-        self.world = HighwayWorld(highway_config, envs=envs)
+        self.world = HighwayWorld(highway_config, envs=envs,
+                                  batch_names=(owner, "decision_frames"))
         self.envs = envs
         road = self.world.road
         self.road = road

@@ -51,7 +51,7 @@ from sdc_gym.traffic.placement import RENYI_PARKING, reset_capacity
 from sdc_gym.traffic.road_events import RoadEventRates
 from sdc_gym.traffic.state import PARKED
 from sdc_gym.validation.actions import real_array
-from sdc_gym.validation.bounds import check_env_count
+from sdc_gym.validation.bounds import check_batch_sizes, check_env_count
 from sdc_gym.validation.env_configs import check_highway_config, check_highway_start
 from sdc_gym.vehicle.path_follower import PHYSICS_DT, PathFollower
 
@@ -183,10 +183,13 @@ class HighwayWorld:
         config: ``HighwayLoop-v0`` config overrides (checked; see :data:`HIGHWAY_DEFAULTS`).
         envs: number of envs.
         owner: name for error messages.
+        batch_names: the env and the key of ``steps_per_action`` in the batch bounds'
+            messages (the behavior env's ``decision_frames``); None: ``owner``'s.
     """
 
     def __init__(self, config: dict[str, Any] | None = None, envs: int = 1,
-                 owner: str = "HighwayLoop-v0") -> None:
+                 owner: str = "HighwayLoop-v0",
+                 batch_names: tuple[str, str] | None = None) -> None:
         self.config = cfg = resolve_config(HIGHWAY_DEFAULTS, config, owner=owner)
         envs = check_env_count(envs, f"{owner}: num_envs")
         check_highway_config(cfg, owner)  # ranges, finiteness, sizes (sdc_gym.validation)
@@ -222,6 +225,11 @@ class HighwayWorld:
         self.ego_length = float(cfg["ego_length"])
         self.ego_width = float(cfg["ego_width"])
         self.car_count = self.traffic_config.car_count
+        # The batch's products (num_envs x each size), before its first per-env array.
+        batch_owner, frames_key = batch_names or (owner, "steps_per_action")
+        check_batch_sizes(batch_owner, envs, frames_per_step=self.steps_per_action,
+                          path_points=self.path_points, cars=self.car_count,
+                          frames_key=frames_key, cars_key="traffic.car_count")
         self.episodes = EpisodeSettings(cfg, owner, self.road, self.car_count, envs, _to_tuple)
         self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT,
                                     object_slots=self.episodes.object_slots)

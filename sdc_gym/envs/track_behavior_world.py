@@ -80,7 +80,10 @@ class TrackBehaviorWorld:
         # incident penalties unscaled.
         track_config = {"reward_progress": 1.0 / self.ticks_per_decision, **cfg["track"],
                         "observe_light_states": True}
-        self.world = world = TrackWorld(track_config, envs=envs)
+        self.world = world = TrackWorld(
+            track_config, envs=envs,
+            batch_names=(owner, "frames per decision (decision_period_s / 0.02 s)"),
+            frames_per_step=self.ticks_per_decision * int(cfg["track"].get("steps_per_action", 1)))
         self.envs = envs
         self.setup = setup = world.setup
         self.continuous = cfg["action"] == "continuous"

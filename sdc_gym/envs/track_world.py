@@ -59,7 +59,7 @@ from sdc_gym.metrics.track_metrics_batch import (
     stop_line_events,
 )
 from sdc_gym.units import MPS_TO_MPH
-from sdc_gym.validation.bounds import check_env_count
+from sdc_gym.validation.bounds import check_batch_sizes, check_env_count
 from sdc_gym.vehicle.dbw_kernel import (
     SPEED,
     YAW,
@@ -83,12 +83,25 @@ class TrackWorld:
         config: the env config (:data:`~sdc_gym.envs.track_setup.TRACK_DEFAULTS` keys).
         envs: number of envs.
         owner: the name config errors are reported under.
+        frames_per_step: physics frames of one step of the batch, for its bounds (None: the
+            config's ``steps_per_action``; a behavior env's decision is longer).
+        batch_names: the env and the key of ``frames_per_step`` in the batch bounds'
+            messages; None: ``owner``'s and ``steps_per_action``.
     """
 
     def __init__(self, config: Mapping[str, Any] | None = None, *, envs: int = 1,
-                 owner: str = "TrackLoop-v0") -> None:
+                 owner: str = "TrackLoop-v0", frames_per_step: int | None = None,
+                 batch_names: tuple[str, str] | None = None) -> None:
         envs = check_env_count(envs, f"{owner}: num_envs")
         self.setup = setup = TrackSetup(config, owner)
+        # The batch's products (num_envs x each size), before its first per-env array.
+        camera = setup.camera_config if setup.camera is not None else None
+        batch_owner, frames_key = batch_names or (owner, "steps_per_action")
+        check_batch_sizes(batch_owner, envs,
+                          frames_per_step=frames_per_step or setup.steps_per_action,
+                          cars=setup.obstacle_count, frames_key=frames_key,
+                          cars_key="obstacles.count", camera_key="camera.width x height",
+                          camera_pixels=camera.width * camera.height if camera else 0)
         self.envs = envs
         self.config = setup.config
         self.track = track = setup.track

@@ -14,7 +14,7 @@ from typing import Final
 
 import numpy as np
 
-from sdc_gym.config import excerpt
+from sdc_gym.config import ConfigError, excerpt
 
 MAX_PATH_POINTS: Final = 10_000
 """Points of a highway path: 200 s of driving at one point per 0.02 s frame."""
@@ -58,3 +58,60 @@ def check_env_count(value: object, key: str = "num_envs") -> int:
         raise ValueError(f"{key} must be an int in [1, {MAX_NUM_ENVS}] (a batch's arrays "
                          f"grow with it), got {excerpt(value)} ({type(value).__name__})")
     return int(value)
+
+
+# ---------------------------------------------------------------- batch products
+# Each size above bounds one env; a batch multiplies them by num_envs (4,096 envs of
+# 10,000 path points are 41 M points, 655 MB per path array), so the products are bounded
+# too, before any array of the batch is allocated. A single env is the batch of one: the
+# products hold for it as well (and admit every single env within the bounds above, but
+# for the step's car updates: 1,000 cars x 50,000 frames is 5e7, past the 1.7e7).
+MAX_BATCH_PATH_POINTS: Final = 4_194_304
+"""num_envs x path_points (4,096 envs of 1,024 points): the batch's path arrays and its
+action space, 16 bytes a point each."""
+MAX_BATCH_CARS: Final = 262_144
+"""num_envs x cars (traffic cars of the highway, obstacles of the track; 4,096 envs of 64):
+the batch's traffic, sensor-fusion and collision arrays."""
+MAX_BATCH_FRAMES: Final = 1_048_576
+"""num_envs x physics frames per step (a decision of a behavior env): the per-frame buffers
+of one step (4,096 envs of 256 frames, 5.12 s each; 4,096 x 1,024 frames measured 6.65 GB and
+88 s a step on the highway, benchmarks/hostile_costs.py --batches)."""
+MAX_BATCH_CAR_UPDATES: Final = 16_777_216
+"""num_envs x cars x frames per step: the car updates one ``step()`` computes (4,096 envs of
+16 cars for 256 frames; a single env of 1,000 cars steps at most 16,777 frames at once)."""
+MAX_BATCH_CAMERA_PIXELS: Final = 4 * MAX_CAMERA_PIXELS
+"""num_envs x camera pixels (four 4K UHD images: 33,177,600 px; 69 envs of the original
+800 x 600): the batch's camera observations of every step."""
+
+
+def check_batch_sizes(owner: str, envs: int, *, frames_per_step: int, path_points: int = 0,
+                      cars: int = 0, camera_pixels: int = 0,
+                      frames_key: str = "steps_per_action", cars_key: str = "car_count",
+                      camera_key: str = "camera pixels") -> None:
+    """``ConfigError`` naming the product, its factors and the bound when a batch of
+    ``envs`` envs of these per-env sizes would pass one of the batch bounds above (each
+    factor is already within its own bound: this is only about their product).
+
+    Called by every batched world (:class:`~sdc_gym.envs.highway_world.HighwayWorld`,
+    :class:`~sdc_gym.envs.track_world.TrackWorld`, hence every vector env, SB3 ``VecEnv``
+    and single env) before it allocates a per-env array."""
+    products = (
+        ("path_points", path_points, MAX_BATCH_PATH_POINTS, "points of the batch's paths"),
+        (cars_key, cars, MAX_BATCH_CARS, "cars of the batch"),
+        (frames_key, frames_per_step, MAX_BATCH_FRAMES,
+         "physics frames of one batch step: its per-frame buffers"),
+        (camera_key, camera_pixels, MAX_BATCH_CAMERA_PIXELS,
+         "camera pixels of one batch observation"),
+    )
+    for key, size, bound, what in products:
+        if envs * size > bound:
+            raise ConfigError(
+                f"{owner}: num_envs x {key} must be at most {bound:,} ({what}), got {envs:,} x "
+                f"{size:,} = {envs * size:,}; lower num_envs to at most {bound // size:,} "
+                f"or {key} to at most {bound // envs:,}")
+    updates = envs * cars * frames_per_step
+    if updates > MAX_BATCH_CAR_UPDATES:
+        raise ConfigError(
+            f"{owner}: num_envs x {cars_key} x {frames_key} must be at most "
+            f"{MAX_BATCH_CAR_UPDATES:,} (car updates of one step: its time), got {envs:,} x "
+            f"{cars:,} x {frames_per_step:,} = {updates:,}; lower one of them")
