@@ -40,6 +40,7 @@ from sdc_gym.lights.traffic_lights import GREEN, RED
 from sdc_gym.stack.track.controllers import TwistControllerParameters
 from sdc_gym.stack.track.dbw_stack import DBWStackAgent
 from sdc_gym.stack.track.follower import CONTINUOUS_FOLLOWER, FollowerParameters
+from sdc_gym.validation.yaml_files import read_yaml
 
 GAIN_NAMES = ("kp", "ki", "kd", "lookahead_min_m", "lookahead_gain_s")
 """The tuned gains, in this order (speed PID, then pure pursuit's look-ahead)."""
@@ -186,7 +187,7 @@ TWIDDLE_STEPS: dict[str, float] = {"kp": 0.2, "ki": 0.1, "kd": 0.05, "lookahead_
 def tuned_parameters(tuner: str, path: Path = TUNED_GAINS
                      ) -> tuple[TwistControllerParameters, FollowerParameters]:
     """The committed gains of ``tuner`` (``"twiddle"`` or ``"optuna"``) as stack settings."""
-    data = yaml.safe_load(path.read_text())
+    data = read_yaml(path, "tuned gains")
     if not isinstance(data, dict) or tuner not in data:
         raise ValueError(f"{path}: no gains for tuner {tuner!r}; it has "
                          f"{sorted(data) if isinstance(data, dict) else type(data).__name__}")
@@ -214,7 +215,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0, help="the episode's seed")
     parser.add_argument("--output", type=Path, default=TUNED_GAINS)
     args = parser.parse_args(argv)
-    data = yaml.safe_load(args.output.read_text()) if args.output.exists() else {}
+    data = read_yaml(args.output, "tuned gains") if args.output.exists() else {}
 
     def cost(gains: Mapping[str, float]) -> float:
         return tuning_cost(gains, args.seed)
