@@ -9,6 +9,7 @@ import math
 import time
 
 import gymnasium as gym
+import numpy as np
 import pytest
 
 import sdc_gym  # noqa: F401
@@ -26,6 +27,7 @@ from sdc_gym.capstone.protocol import (
     command_value,
     control_fields,
     drawline_points,
+    obstacle_fields,
     telemetry_fields,
 )
 from tests.conftest import UDACITY
@@ -51,12 +53,15 @@ def test_the_telemetry_and_control_frames_byte_for_byte():
         try:
             client.emit("telemetry", telemetry_fields(CAR))
             client.emit("control", control_fields(CAR))
-            frames = wait_frames(server, 2)
+            # bridge.publish_obstacles reads obs[0], obs[1], obs[2] of data['obstacles'].
+            client.emit("obstacle", obstacle_fields(np.array([[1.5, -2.25], [-10.0, 20.125]])))
+            frames = wait_frames(server, 3)
         finally:
             client.close()
     assert frames[0] == ('42["telemetry",{"x":1.5,"y":-2.25,"z":0.0,"yaw":90.0,'
                          '"velocity":22.369362920544024,"dbw_enable":true}]')
     assert frames[1] == '42["control",{"steering_angle":-5.0,"throttle":0.25,"brake":400.0}]'
+    assert frames[2] == '42["obstacle",{"obstacles":[[1.5,-2.25,0.0],[-10.0,20.125,0.0]]}]'
     assert client.protocol == 3
     assert any("EIO=3&transport=polling" in poll for poll in server.polls)
 
@@ -97,6 +102,9 @@ def test_one_env_step_sends_control_lights_then_telemetry_of_the_original_track(
             session.close()
     events = [frame.split('"')[1] for frame in server.frames[:3]]
     assert events == ["control", "trafficlights", "telemetry"]
+    # No obstacles configured: no obstacle event at all (nor lidar: sdc-gym has none).
+    frame_events = {frame.split('"')[1] for frame in server.frames if '"' in frame}
+    assert not frame_events & {"obstacle", "lidar"}
     _, lights = json.loads(server.frames[1][2:])
     # One entry per light (eight, in the YAML's order), each light facing back along the
     # road (a unit vector dx, dy), its state as the env has it (RED 0, YELLOW 1, GREEN 2).
@@ -113,6 +121,44 @@ def test_one_env_step_sends_control_lights_then_telemetry_of_the_original_track(
     unwrapped = env.unwrapped
     assert action.tolist() == pytest.approx([1.0, 0.0, unwrapped.max_steering_angle])
     env.close()
+
+
+def test_obstacles_are_sent_at_their_world_positions_with_the_lights():
+    # Obstacles at s = 0 (the track's first waypoint, 909.48, 1128.67, heading ~+x) on
+    # the centre line and 2 m to its right (-y); the car starts 60 m on.
+    env = gym.make("sdc_gym/TrackLoop-v0", config={
+        "track": str(CAPSTONE / "wp_yaw_const.csv"),
+        "light_config": str(CAPSTONE / "sim_traffic_light_config.yaml"), "start_s": 60.0,
+        "obstacles": {"positions": [[0.0, 0.0], [0.0, 2.0]]}})
+    observation, info = env.reset(seed=0)
+    with RawStyxServer() as server:
+        options = CapstoneOptions(port=server.port, lockstep=True, report_every=2)
+        session = CapstoneSession(env, None, options)
+        try:
+            session.start()
+            for _ in range(3):
+                session.action(info)
+        finally:
+            session.close()
+    messages = [frame for frame in server.frames if frame.startswith("42")]  # not pings
+    events = [frame.split('"')[1] for frame in messages]
+    assert events == ["control", "trafficlights", "obstacle", "telemetry", "telemetry",
+                      "control", "trafficlights", "obstacle", "telemetry"]
+    frame = messages[2]
+    assert frame.startswith('42["obstacle",{"obstacles":[[909.48,1128.67,0.0],[')
+    _, data = json.loads(frame[2:])
+    assert data["obstacles"][1] == pytest.approx([909.48, 1126.67, 0.0], abs=0.01)
+    # The same centres the env observes and collides with.
+    assert [xyz[:2] for xyz in data["obstacles"]] == \
+        env.unwrapped.world.state.obstacles[0].tolist()
+    assert observation["obstacles"].tolist() == \
+        np.float32(data["obstacles"])[:, :2].tolist()
+    env.close()
+
+
+def test_obstacle_centres_must_be_x_y_pairs():
+    with pytest.raises(ValueError, match=r"\(n, 2\).*shape \(3,\)"):
+        obstacle_fields(np.zeros(3))
 
 
 @pytest.mark.parametrize(("data", "message"), [

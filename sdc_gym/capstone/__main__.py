@@ -76,7 +76,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--telemetry-frames", type=int, default=1, metavar="N",
                         help="physics frames (0.02 s) per step and telemetry message")
     parser.add_argument("--report-every", type=int, default=1, metavar="STEPS",
-                        help="steps between control and trafficlights messages")
+                        help="steps between control, trafficlights and obstacle messages")
     parser.add_argument("--image-every", type=int, default=0, metavar="STEPS",
                         help="steps between camera images (0: camera off, the default)")
     parser.add_argument("--image-size", type=parse_size, default=(800, 600))

@@ -15,6 +15,8 @@ event              direction  fields (units)
 ``trafficlights``  sim->stack ``light_pos_x/y/z`` (m), ``light_pos_dx/dy`` (the pole's facing:
                               the bridge takes ``atan2(dy, dx)``), ``light_state`` (RED 0,
                               YELLOW 1, GREEN 2, UNKNOWN 4): one list entry per light
+``obstacle``       sim->stack ``obstacles``: one ``[x, y, z]`` (m) per obstacle (the bridge
+                              publishes a pose per entry and a PointCloud2 of the list)
 ``image``          sim->stack ``image``: base64 of an encoded RGB frame (the bridge decodes it
                               with ``PIL.Image.open``)
 ``steer``          stack->sim ``steering_angle``: steering-wheel angle, rad, as a *string*
@@ -31,7 +33,9 @@ original's car controller clamps its inputs.
 Pose reference: the original reports the car's transform, near the middle of the body;
 sdc-gym's pose is the rear axle, so :func:`telemetry_fields` reports the point
 ``centre_offset`` m ahead of it (the body's centre: ``TrackSetup.centre_offset``, 2.45 m
-for the sim car). ``z`` is 0: the tracks are flat.
+for the sim car). ``z`` is 0: the tracks are flat. Obstacles (parked cars) are reported
+at their centres, z 0 too. The original's ``lidar`` event (``lidar_x``, ``lidar_y``,
+``lidar_z`` lists) is never sent: sdc-gym has no lidar sensor.
 """
 
 from __future__ import annotations
@@ -54,6 +58,7 @@ DEFAULT_PORT: Final = 4567  # the styx server's port in the original's server.py
 TELEMETRY: Final = "telemetry"
 CONTROL: Final = "control"
 TRAFFIC_LIGHTS: Final = "trafficlights"
+OBSTACLE: Final = "obstacle"
 IMAGE: Final = "image"
 STEER: Final = "steer"
 THROTTLE: Final = "throttle"
@@ -115,6 +120,19 @@ def traffic_light_fields(positions: NDArray[np.float64], facing_yaw: NDArray[np.
             "light_pos_dx": [math.cos(float(v)) for v in facing_yaw],
             "light_pos_dy": [math.sin(float(v)) for v in facing_yaw],
             "light_state": [int(v) for v in states]}
+
+
+def obstacle_fields(centres: NDArray[np.float64]) -> dict[str, Any]:
+    """``obstacle``: per obstacle its centre ``[x, y, z]`` (m, z 0 as in telemetry).
+
+    ``centres`` is (n, 2) x, y, as the env stores them (``TrackWorld.state.obstacles``).
+    The original's ``bridge.publish_obstacles`` reads ``obs[0], obs[1], obs[2]`` of each
+    entry of ``data['obstacles']``, so each is a list of three numbers.
+    """
+    if centres.ndim != 2 or centres.shape[1] != 2:
+        raise ValueError(f"obstacle centres must be an (n, 2) array of x, y, got shape "
+                         f"{centres.shape}")
+    return {"obstacles": [[float(x), float(y), 0.0] for x, y in centres.tolist()]}
 
 
 def encode_image(frame: NDArray[np.uint8], image_format: str = "jpeg",

@@ -21,9 +21,9 @@ Timing: ``lockstep=False`` (default, the original's only mode) paces the env to 
 ``/clock`` (:mod:`sdc_gym.capstone.sim_clock`): each step first sets the stack's clock to
 the env's time and waits for the DBW node's commands of that tick, then exchanges
 telemetry in lock-step (``docs/capstone.md``, "Time", says when a step is handled). Rates, in
-env steps: telemetry every step, ``control`` and ``trafficlights`` every
-``report_every`` steps, ``image`` every ``image_every`` steps (0: no camera, the
-default; the original's camera checkbox starts off).
+env steps: telemetry every step, ``control``, ``trafficlights`` and (when the env has
+obstacles) ``obstacle`` every ``report_every`` steps, ``image`` every ``image_every``
+steps (0: no camera, the default; the original's camera checkbox starts off).
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ from sdc_gym.capstone.protocol import (
     DEFAULT_PORT,
     IMAGE,
     IMAGE_FORMATS,
+    OBSTACLE,
     STEER,
     TELEMETRY,
     THROTTLE,
@@ -59,6 +60,7 @@ from sdc_gym.capstone.protocol import (
     car_report,
     control_fields,
     encode_image,
+    obstacle_fields,
     telemetry_fields,
     traffic_light_fields,
 )
@@ -94,8 +96,8 @@ class CapstoneOptions:
             have not all answered within ``tick_timeout`` wall s is *missed*: the step
             goes on with the commands held (``reply_timeout`` of them ends the episode
             ``stack_stalled``).
-        report_every, image_every: env steps between ``control``/``trafficlights`` and
-            between ``image`` messages (0: never).
+        report_every, image_every: env steps between ``control``/``trafficlights``/
+            ``obstacle`` and between ``image`` messages (0: never).
         image_width, image_height, image_format, image_quality: the camera frame.
     """
 
@@ -266,6 +268,9 @@ class CapstoneSession:
                 self.client.emit(TRAFFIC_LIGHTS, traffic_light_fields(
                     self.env.track.light_positions, self.env.track.light_yaw,
                     world.state.light_states[0]))
+            obstacles = world.state.obstacles[0]
+            if len(obstacles):  # none configured: no event, as a track without lights
+                self.client.emit(OBSTACLE, obstacle_fields(obstacles))
         if options.image_every and self._steps % options.image_every == 0:
             self.client.emit(IMAGE, {"image": self.image(info)})
         telemetry = telemetry_fields(car)
