@@ -19,17 +19,13 @@ from typing import Any, Final
 
 import gymnasium as gym
 
+from sdc_agents.policy_agent import DRIVEN_ENV, SB3_KINDS, policy_agent
 from sdc_gym.validation.yaml_files import read_yaml
 
 POLICY_FOLDERS: Final = (Path(__file__).resolve().parent / "highway" / "policies",
                          Path(__file__).resolve().parent / "track" / "policies")
 """Where committed policies live (inside the package, so an installed wheel has them)."""
 
-DRIVEN_ENV: Final = {"sdc_gym/HighwayLoopBehavior-v0": "sdc_gym/HighwayLoop-v0",
-                     "sdc_gym/TrackLoopBehavior-v0": "sdc_gym/TrackLoop-v0"}
-"""The env a policy drives, by the behavior env it was trained on."""
-
-SB3_ALGORITHMS: Final = ("ppo", "dqn", "sac", "a2c")
 
 
 class CommittedPolicy:
@@ -42,8 +38,8 @@ class CommittedPolicy:
             raise ValueError(f"{config_file}: a committed policy's config must be a mapping "
                              "with 'algo' and 'env'")
         algo, trained_on = config.get("algo"), config.get("env")
-        if algo not in SB3_ALGORITHMS:
-            raise ValueError(f"{config_file}: algo {algo!r}; valid: {list(SB3_ALGORITHMS)}")
+        if algo not in SB3_KINDS:
+            raise ValueError(f"{config_file}: algo {algo!r}; valid: {list(SB3_KINDS)}")
         if trained_on not in DRIVEN_ENV:
             raise ValueError(f"{config_file}: env {trained_on!r}; valid: {sorted(DRIVEN_ENV)}")
         self.name = model.stem
@@ -52,8 +48,6 @@ class CommittedPolicy:
         self.env_id: str = DRIVEN_ENV[trained_on]
 
     def agent(self, env: gym.Env) -> Any:
-        from sdc_agents.policy_agent import policy_agent  # SB3 and torch only when used
-
         return policy_agent(env, self.algo, self.model, name=self.name)
 
 

@@ -20,12 +20,11 @@ the run's ``checkpoints/``); without one the env's defaults apply.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import Any, Final
 
 import gymnasium as gym
 import numpy as np
 
-from sdc_agents.committed_policies import DRIVEN_ENV
 from sdc_gym.config import excerpt, resolve_config
 from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
 from sdc_gym.envs.track_behavior import TrackLoopBehaviorEnv
@@ -51,6 +50,9 @@ SB3_KINDS = ("ppo", "dqn", "sac", "a2c")
 RLLIB_KIND = "rllib"
 """The agent spec prefix of RLlib checkpoints: ``rllib:<checkpoint folder>``."""
 POLICY_KINDS = (*SB3_KINDS, RLLIB_KIND)
+DRIVEN_ENV: Final = {"sdc_gym/HighwayLoopBehavior-v0": "sdc_gym/HighwayLoop-v0",
+                     "sdc_gym/TrackLoopBehavior-v0": "sdc_gym/TrackLoop-v0"}
+"""The env a policy drives, by the behavior env it was trained on."""
 PACKAGE_DIR = Path(__file__).resolve().parent
 """This package's folder: ``agents/`` in a checkout, ``site-packages/sdc_agents/`` installed."""
 PACKAGE_FOLDER = "agents"
