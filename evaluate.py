@@ -65,10 +65,12 @@ next to the seed planner's record of 276.53 miles.
 from __future__ import annotations
 
 import argparse
+import multiprocessing
 import os
 import shlex
 import sys
 import time
+from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -95,7 +97,7 @@ from sdc_evaluation.incident_reports import DEFAULT_HISTORY_S
 from sdc_evaluation.outputs import OWNED_NAMES, PlotOptions, write_run
 from sdc_evaluation.plots import Limits
 from sdc_evaluation.profiles import stop_line_distances
-from sdc_evaluation.runner import run_episodes
+from sdc_evaluation.runner import WORKER_THREAD_VARIABLES, run_episodes
 from sdc_evaluation.scenario_runs import (
     SCENARIOS_CSV,
     SCENARIOS_JSON,
@@ -376,20 +378,36 @@ def probe_env(env_id: str, env_config: dict[str, Any]) -> EnvProbe:
         env.close()
 
 
-def check_policies_build(env_id: str, env_config: dict[str, Any], specs: list[str]) -> None:
-    """Each trained policy of ``specs`` built once on the env, as every episode builds it
-    (its model loaded, its spaces checked against the behavior env under it): a policy of
-    another env or config is one error before any episode, not a failure in each."""
-    if not any(parse_agent_spec(spec)[0] in POLICY_KINDS for spec in specs):
-        return
+def _policy_build_error(env_id: str, env_config: dict[str, Any], specs: list[str]
+                        ) -> str | None:
+    """The first trained policy of ``specs`` that cannot be built on the env, as a message
+    (None: every one builds). Runs in a child process: see :func:`check_policies_build`."""
     env = gym.make(env_id, config=env_config)
     try:
         for spec in specs:
-            check_agent_builds(spec, env)
-    except (ValueError, TypeError) as error:
-        raise SystemExit(f"--agents: {spec}: {error}") from None
+            try:
+                check_agent_builds(spec, env)
+            except (ValueError, TypeError) as error:
+                return f"--agents: {spec}: {error}"
     finally:
         env.close()
+    return None
+
+
+def check_policies_build(env_id: str, env_config: dict[str, Any], specs: list[str]) -> None:
+    """Each trained policy of ``specs`` built once on the env, as every episode builds it
+    (its model loaded, its spaces checked against the behavior env under it): a policy of
+    another env or config is one error before any episode, not a failure in each.
+
+    The build runs in a child process of its own: torch used in this process would be
+    inherited half-initialised by the forked workers of the episode pool, and a worker's
+    model load then hung on a futex (seen with two workers and two policies)."""
+    if not any(parse_agent_spec(spec)[0] in POLICY_KINDS for spec in specs):
+        return
+    with ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context()) as pool:
+        error = pool.submit(_policy_build_error, env_id, env_config, specs).result()
+    if error is not None:
+        raise SystemExit(error)
 
 
 def output_folder(args: argparse.Namespace) -> Path:
@@ -405,6 +423,11 @@ def output_folder(args: argparse.Namespace) -> Path:
 def main(argv: list[str] | None = None) -> dict[str, Any]:
     """Run the evaluation (or ``compare``); returns the per-agent rows, comparisons,
     episodes and files written."""
+    # One math thread here too, before torch (and its OpenMP) can load in this process: an
+    # OpenMP pool started here is inherited broken by the forked workers, whose first
+    # policy load then hung on a futex (two workers, two [256, 256] policies).
+    for variable in WORKER_THREAD_VARIABLES:
+        os.environ.setdefault(variable, "1")
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv[:1] == ["compare"]:
         compare = parse_compare_args(argv[1:])

@@ -113,9 +113,8 @@ def check_policy_file(kind: str, path: str | Path, env_id: str) -> None:
     else:
         if not model_path.is_file():
             raise ValueError(f"policy {label!r}: no model file at {model_path}")
-        module = _sb3_policy_module(model_path, label)
-        if module.split(".")[:2] != ["stable_baselines3", kind]:
-            found = module.split(".")[1] if module.startswith("stable_baselines3.") else module
+        module, found = _sb3_algorithm(model_path, label)
+        if found != kind:
             raise ValueError(f"policy {label!r}: {model_path.name} holds a policy of "
                              f"{module!r} (an SB3 {found.upper()} model), not of "
                              f"{kind.upper()}: give it as {found}:{path}")
@@ -130,9 +129,11 @@ def check_policy_file(kind: str, path: str | Path, env_id: str) -> None:
                              f"{DRIVEN_ENV[trained_on]}, not {env_id}")
 
 
-def _sb3_policy_module(model_path: Path, label: str) -> str:
-    """The module of the policy class an SB3 zip names (``stable_baselines3.dqn.policies``),
-    read from its ``data`` JSON without unpickling anything."""
+def _sb3_algorithm(model_path: Path, label: str) -> tuple[str, str]:
+    """The module of the policy class an SB3 zip names and the algorithm it belongs to,
+    read from its ``data`` JSON without unpickling anything. DQN and SAC have policy
+    modules of their own (``stable_baselines3.dqn.policies``); PPO and A2C share
+    ``stable_baselines3.common.policies`` and are told apart by PPO's ``clip_range``."""
     import json
     import zipfile
 
@@ -144,10 +145,15 @@ def _sb3_policy_module(model_path: Path, label: str) -> str:
         module = data["policy_class"]["__module__"]
         if not isinstance(module, str):
             raise TypeError(f"policy_class.__module__ is {excerpt(module)}")
-        return module
     except (OSError, KeyError, TypeError, ValueError, zipfile.BadZipFile) as error:
         raise ValueError(f"policy {label!r}: {model_path} is not a stable-baselines3 model "
                          f"file ({type(error).__name__}: {excerpt(str(error))})") from None
+    parts = module.split(".")
+    if parts[:1] != ["stable_baselines3"] or len(parts) < 2:
+        return module, module
+    if parts[1] == "common":
+        return module, "ppo" if "clip_range" in data else "a2c"
+    return module, parts[1]
 
 
 def check_policy_spaces(model: Any, observation_space: gym.Space, action_space: gym.Space,

@@ -151,3 +151,26 @@ def test_evaluate_refuses_a_policy_of_another_env_before_any_episode(tmp_path):
     assert str(raised.value).startswith("--agents: agent 'external:./path_planning' is an "
                                         "external planner")
     assert not (tmp_path / "run").exists()
+
+
+@pytest.mark.parametrize("algorithm", ["ppo", "a2c"])
+def test_ppo_and_a2c_share_a_policy_module_and_are_told_apart(tmp_path, algorithm):
+    """PPO and A2C both save stable_baselines3.common.policies' ActorCriticPolicy: a PPO
+    zip was refused as "an SB3 COMMON model" before PPO's clip_range told them apart."""
+    import stable_baselines3
+
+    behavior = gym.make("sdc_gym/HighwayLoopBehavior-v0")
+    model = getattr(stable_baselines3, algorithm.upper())("MlpPolicy", behavior, n_steps=8,
+                                                          device="cpu")
+    path = tmp_path / f"{algorithm}_policy.zip"
+    model.save(path)
+    behavior.close()
+    path.with_suffix(".yaml").write_text("env: sdc_gym/HighwayLoopBehavior-v0\nconfig: {}\n")
+    check_agent_env(f"{algorithm}:{path}", HIGHWAY)
+    other = "a2c" if algorithm == "ppo" else "ppo"
+    with pytest.raises(ValueError) as raised:
+        check_agent_env(f"{other}:{path}", HIGHWAY)
+    assert str(raised.value) == (
+        f"policy '{other}:{path}': {path.name} holds a policy of "
+        f"'stable_baselines3.common.policies' (an SB3 {algorithm.upper()} model), not of "
+        f"{other.upper()}: give it as {algorithm}:{path}")
