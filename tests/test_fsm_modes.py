@@ -4,9 +4,11 @@ built to trigger it, none on an empty road, and the seed's styles never entering
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import gymnasium as gym
 import pytest
+import yaml
 
 import sdc_gym  # noqa: F401  (registers the envs)
 from sdc_agents.registry import make_agent
@@ -108,3 +110,21 @@ def test_reverse_stops_short_of_a_blockage_when_it_cannot_leave_the_lane():
     assert own.ahead_gap == pytest.approx(30.0, abs=3.0)
     assert math.isfinite(own.ahead_gap) and agent.behavior.mode.value == "reverse"
     env.close()
+
+
+def test_hyper_leaves_only_past_the_mid_range_plus_its_margin(tmp_path):
+    """The library's hard-braking lead with a car beside: Hyper slows for the gap beside,
+    the lead draws away to the mid range (35 m) just before it brakes at 8 m/s^2. Without
+    the exit margin Hyper ends there, the approach rule plans a second of acceleration and
+    the ego hits the lead at 6.46 s; with the margin (10 m) it stays in Hyper and stops."""
+    library = Path(__file__).resolve().parents[1] / "sdc_gym" / "scenarios" / "library"
+    scenario = yaml.safe_load((library / "stress_hard_braking_lead.yaml").read_text())
+    info, log, entered = run("fsm_hyper", scenario)
+    assert entered == {"hyper"}
+    assert info["summary"]["scenario"]["passed"], info["summary"]["scenario"]["reason"]
+    # Hyper held through the lead's 35-45 m (no exit at the mid range) until it braked.
+    assert {mode for t, mode, _, _ in log if 2.5 < t < 4.0} == {"hyper"}
+    rules = tmp_path / "hyper_no_margin.yaml"
+    rules.write_text("style: bold\nhyper: {enabled: true, exit_margin_m: 0.0}\n")
+    info, _, _ = run(f"fsm:{rules}", scenario)
+    assert info["summary"]["scenario"]["reason"] == "collision with car at 6.46 s"

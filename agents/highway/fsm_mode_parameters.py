@@ -94,6 +94,12 @@ class HyperRules:
     changes into it with the cool-down ``cooldown_s`` and double changes where the road's
     radius exceeds ``double_radius_m``; when the car behind in that lane is too close it
     slows to that car's speed less ``slow_by_mps`` so that it passes and opens the gap.
+
+    Hyper is left only once the lead is ``exit_margin_m`` beyond the mid range (hysteresis):
+    slowing for the gap lets the lead draw away, and leaving Hyper the moment it crosses the
+    mid range would hand the speed back to the approach rule, which plans a second of
+    acceleration toward a lead that may be braking (``stress_hard_braking_lead``: a
+    collision without the margin).
     """
 
     enabled: bool = False
@@ -102,6 +108,7 @@ class HyperRules:
     double_radius_m: float = 1000.0
     slow_by_mps: float = 2.0
     timeout_s: float = 20.0
+    exit_margin_m: float = 10.0
 
 
 # ---------------------------------------------------------------------------- options

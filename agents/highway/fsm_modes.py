@@ -80,7 +80,8 @@ class OptionalModes:
                 mode = Mode.HYPER
             elif p.caution.enabled and self.slow_beside(world, goal_speed) is not None:
                 mode = Mode.CAUTION
-        if mode is not Mode.HYPER and not (p.hyper.enabled and blocked_gap < mid_range):
+        if mode is not Mode.HYPER and not (p.hyper.enabled
+                                           and blocked_gap < self._hyper_range(mid_range)):
             self._hyper_since = math.nan
             self._hyper_spent = False
         self._reverse_entered = mode is Mode.REVERSE and self.mode is not Mode.REVERSE
@@ -143,10 +144,17 @@ class OptionalModes:
                 found.append(t)
         return sorted(found, key=lambda t: -lanes[t].ahead_gap)
 
+    def _hyper_range(self, mid_range: float) -> float:
+        """The lead's distance under which Hyper holds: the mid range to enter it, that
+        plus the exit margin to stay in it (hysteresis)."""
+        if self.mode is Mode.HYPER:
+            return mid_range + self._p.hyper.exit_margin_m
+        return mid_range
+
     def _hyper_holds(self, world: WorldModel, blocked_gap: float, mid_range: float,
                      now: float) -> bool:
         h = self._p.hyper
-        if blocked_gap >= mid_range or self._hyper_spent:
+        if blocked_gap >= self._hyper_range(mid_range) or self._hyper_spent:
             return False
         if not (self._faster_lanes(world, False) or self._faster_lanes(world, True)):
             return False
