@@ -100,7 +100,7 @@ class HighwayBehaviorWorld:
         self.motion_params = MotionParameters(
             frames_per_cycle=self.world.steps_per_action,
             latency_frames=self.world.latency_steps,
-            path_length=min(MotionParameters.path_length, self.world.path_points))
+            path_length=self.world.path_points)  # the queue: as MotionParameters.for_env
         self.perception = [Perception(road, self.perception_params) for _ in range(envs)]
         self.motion_batch = MotionBatch(road, self.motion_params, envs)
         self.motion = [SeedMotionPlanner.view(self.motion_batch, env) for env in range(envs)]

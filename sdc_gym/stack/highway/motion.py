@@ -133,12 +133,15 @@ class MotionParameters:
 
     @classmethod
     def for_env(cls, env: Any, **changes: Any) -> MotionParameters:
-        """Parameters matching a ``HighwayLoop-v0`` env's timing and path capacity."""
+        """Parameters matching a ``HighwayLoop-v0`` env's timing and path capacity: the
+        queue (``path_length``) is the env's ``path_points``, 50 by default (the seed's
+        queue of about 50), so a config's ``path_points`` sets the planner's queue length
+        (``benchmarks/study_fsm_latency.py``)."""
         unwrapped = env.unwrapped
         values: dict[str, Any] = {
             "frames_per_cycle": int(unwrapped.steps_per_action),
             "latency_frames": int(unwrapped.latency_steps),
-            "path_length": min(cls.path_length, int(unwrapped.path_points)),
+            "path_length": int(unwrapped.path_points),
         }
         values.update(changes)
         return replace(cls(), **values)
