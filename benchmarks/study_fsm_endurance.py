@@ -16,7 +16,6 @@ the stretches per agent (``stretches.png``).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -25,7 +24,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # evaluate.py beside it
 
 import evaluate  # the project's evaluation entry point
-from sdc_evaluation.files import load_traces
+from sdc_evaluation.files import load_summary, load_traces
 
 AGENTS = ("fsm_conservative", "fsm_bold", "fsm_alert", "fsm_caution", "fsm_reverse",
           "fsm_hyper", "fsm_straight_braking", "fsm_reroute", "fsm_easing")
@@ -59,7 +58,7 @@ def main(argv: list[str] | None = None) -> None:
                        "--seeds", *map(str, args.seeds), "--output", str(args.output),
                        "--workers", str(args.workers), "--overwrite", "--no-progress",
                        "--incident-history", "0"])
-    summary = json.loads((args.output / "summary.json").read_text(encoding="utf-8"))
+    summary = load_summary(args.output)
     traces = load_traces(args.output / "traces.npz")
     closed: dict[str, list[float]] = {agent: [] for agent in args.agents}
     censored: dict[str, list[float]] = {agent: [] for agent in args.agents}

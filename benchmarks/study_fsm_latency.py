@@ -22,13 +22,14 @@ per style and queue, the first latency with any incident: where the style starts
 from __future__ import annotations
 
 import argparse
-import csv
 import sys
 from pathlib import Path
 
 import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # evaluate.py beside it
+
+from study_fsm_variants import interval, read_rows  # beside this script
 
 import evaluate  # the project's evaluation entry point
 
@@ -46,11 +47,6 @@ def write_config(folder: Path, frames: int, queue: int) -> Path:
     return path
 
 
-def read_agents(path: Path) -> dict[str, dict[str, str]]:
-    with path.open(encoding="utf-8", newline="") as handle:
-        return {row["agent"]: row for row in csv.DictReader(handle)}
-
-
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -63,6 +59,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--tables-only", action="store_true",
                         help="print the tables of the runs already in --output")
     args = parser.parse_args(argv)
+    args.frames, args.queues = sorted(set(args.frames)), sorted(set(args.queues))
     for name, values in (("--frames", args.frames), ("--queues", args.queues)):
         if min(values) < 1:
             parser.error(f"{name} must be at least 1, got {min(values)}")
@@ -77,7 +74,7 @@ def main(argv: list[str] | None = None) -> None:
                                "--seeds", *map(str, args.seeds), "--output", str(run),
                                "--workers", str(args.workers), "--overwrite",
                                "--no-progress", "--no-plots", "--incident-history", "0"])
-            cells[frames, queue] = read_agents(run / "agents.csv")
+            cells[frames, queue] = {row["agent"]: row for row in read_rows(run / "agents.csv")}
 
     print(f"\nseeds {', '.join(map(str, args.seeds))}, one lap each; latency = the reply "
           f"latency (ms), queue = points sent per cycle\n")
@@ -88,12 +85,8 @@ def main(argv: list[str] | None = None) -> None:
         print("|---:|---:|---:|---:|---:|---:|---:|")
         for (frames, queue), rows in cells.items():
             row = rows[style]
-            print(f"| {queue} | {frames * FRAME_MS} | {float(row['mean_speed_mph']):.2f} "
-                  f"[{float(row['mean_speed_mph_ci_low'] or 'nan'):.2f}, "
-                  f"{float(row['mean_speed_mph_ci_high'] or 'nan'):.2f}] | "
-                  f"{float(row['incidents_per_100_miles']):.1f} "
-                  f"[{float(row['incidents_per_100_miles_ci_low']):.1f}, "
-                  f"{float(row['incidents_per_100_miles_ci_high']):.1f}] | "
+            print(f"| {queue} | {frames * FRAME_MS} | {interval(row, 'mean_speed_mph')} | "
+                  f"{interval(row, 'incidents_per_100_miles', 1)} | "
                   f"{row['incidents_collision']} | {float(row['max_acceleration']):.2f} | "
                   f"{float(row['max_jerk']):.2f} |")
     print("\n| style | queue | first latency with an incident (ms) | its incidents |")

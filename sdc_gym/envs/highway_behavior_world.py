@@ -97,10 +97,7 @@ class HighwayBehaviorWorld:
         except ValueError as error:
             raise ConfigError(f"{owner}: {error}") from None
         self.perception_params = PerceptionParameters(tracking=bool(cfg["kalman_tracking"]))
-        self.motion_params = MotionParameters(
-            frames_per_cycle=self.world.steps_per_action,
-            latency_frames=self.world.latency_steps,
-            path_length=self.world.path_points)  # the queue: as MotionParameters.for_env
+        self.motion_params = MotionParameters.for_env(self.world)
         self.perception = [Perception(road, self.perception_params) for _ in range(envs)]
         self.motion_batch = MotionBatch(road, self.motion_params, envs)
         self.motion = [SeedMotionPlanner.view(self.motion_batch, env) for env in range(envs)]

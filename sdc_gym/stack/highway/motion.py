@@ -133,11 +133,11 @@ class MotionParameters:
 
     @classmethod
     def for_env(cls, env: Any, **changes: Any) -> MotionParameters:
-        """Parameters matching a ``HighwayLoop-v0`` env's timing and path capacity: the
-        queue (``path_length``) is the env's ``path_points``, 50 by default (the seed's
-        queue of about 50), so a config's ``path_points`` sets the planner's queue length
-        (``benchmarks/study_fsm_latency.py``)."""
-        unwrapped = env.unwrapped
+        """Parameters matching a ``HighwayLoop-v0`` env's (or its world's) timing and path
+        capacity: the queue (``path_length``) is the env's ``path_points``, 50 by default
+        (the seed's queue of about 50), so a config's ``path_points`` sets the planner's
+        queue length (``benchmarks/study_fsm_latency.py``)."""
+        unwrapped = getattr(env, "unwrapped", env)
         values: dict[str, Any] = {
             "frames_per_cycle": int(unwrapped.steps_per_action),
             "latency_frames": int(unwrapped.latency_steps),
