@@ -375,3 +375,29 @@ def test_a_queue_longer_than_its_buffer_grows_it():
                                           previous[planner.consumed:])
         previous = path
         obs, *_ = env.step(path)
+
+
+# ---------------------------------------------------------------------- (7) queue length
+@pytest.mark.parametrize("path_points", [25, 120])
+def test_the_fsm_sends_the_envs_path_points_as_its_queue(path_points):
+    """The queue is the env's ``path_points`` (the seed's "queue length of 50" is the
+    default), not a fixed 50: after the first cycle every path the FSM sends holds exactly
+    ``path_points`` points, and it drives a clean 40 s with them."""
+    from sdc_agents.registry import make_agent
+
+    env = gym.make("sdc_gym/HighwayLoop-v0",
+                   config={"traffic": {"car_count": 6}, "path_points": path_points})
+    agent = make_agent("fsm_bold", env)
+    assert MotionParameters.for_env(env).path_length == path_points
+    obs, _ = env.reset(seed=3)
+    agent.reset()
+    lengths = []
+    info: dict = {}
+    while not info or info["time"] < 40.0:
+        path = agent.act(obs)
+        lengths.append(len(path))
+        obs, _, terminated, truncated, info = env.step(path)
+        assert not (terminated or truncated), info.get("summary")
+    assert set(lengths[1:]) == {path_points}
+    assert not any(info[f"incidents_{kind}"] for kind in INCIDENT_KINDS)
+    assert info["distance"] > 400.0  # ~40 s near 47 mph less the launch
