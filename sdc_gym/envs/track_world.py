@@ -242,7 +242,7 @@ class TrackWorld:
         self._steps_left[:] = active
         incidents = self.advance(1, self._run_steps)
         reward = np.zeros(self.envs)
-        for env in np.flatnonzero(active).tolist():
+        for env in active.nonzero()[0].tolist():
             reward[env] = self.rewards(env, incidents[env])[0]
         return reward, incidents
 
@@ -268,7 +268,7 @@ class TrackWorld:
     def _serve_pauses(self) -> None:
         """What the kernel leaves to Python (see :mod:`sdc_gym.envs.track_kernel`)."""
         st = self.state
-        for env in np.flatnonzero(st.stage == NEED_MANUAL).tolist():
+        for env in (st.stage == NEED_MANUAL).nonzero()[0].tolist():
             vehicle = self.vehicle_state(env)
             driver = self.drivers[env]
             assert driver is not None
@@ -278,12 +278,12 @@ class TrackWorld:
             st.forced[env] = driver.act(vehicle, self.reference, self.setup.speed_limit,
                                         self._manual_stop_distance(env))
             st.stage[env] = HAVE_MANUAL
-        for env in np.flatnonzero(st.stage == NEED_PROJECTION).tolist():
+        for env in (st.stage == NEED_PROJECTION).nonzero()[0].tolist():
             car = st.vehicle[env]
             (st.fix_s[env],), (st.fix_d[env],) = self.reference.project_few(
                 [[float(car[X]), float(car[Y])]], [float(st.guess[env])])
             st.stage[env] = HAVE_PROJECTION
-        for env in np.flatnonzero(st.stage == NEED_CONTACT).tolist():
+        for env in (st.stage == NEED_CONTACT).nonzero()[0].tolist():
             st.contact[env] = self._touching(env)
             st.stage[env] = HAVE_CONTACT
 
@@ -328,7 +328,7 @@ class TrackWorld:
             self.metrics.collect(self.events, longest)
             return new
         ended = st.terminated | st.truncated
-        short = np.flatnonzero(counts < longest).tolist()
+        short = (counts < longest).nonzero()[0].tolist()
         for env in short:  # copies of the last frame (or of the car) after an env's end
             n = int(counts[env])
             if n:
@@ -341,7 +341,7 @@ class TrackWorld:
                 buffers.d[env, :longest] = st.d[env]
                 buffers.speed[env, :longest] = car[SPEED]
         red = self._red_events()
-        contact_at = {env: int(counts[env]) - 1 for env in np.flatnonzero(st.contact >= 0).tolist()
+        contact_at = {env: int(counts[env]) - 1 for env in (st.contact >= 0).nonzero()[0].tolist()
                       if counts[env]}
         bounds = sorted({int(n) for n in counts.tolist() if n} | {longest})
         low = 0
@@ -364,7 +364,7 @@ class TrackWorld:
                 if items and counts[env] > low:
                     incidents[env] = [*incidents[env], *items]
             if high < longest:
-                for env in np.flatnonzero((counts == high) & ended).tolist():
+                for env in ((counts == high) & ended).nonzero()[0].tolist():
                     self._frozen[env] = self._metrics_view(env)
             low = high
         self.metrics.collect(self.events, longest)
@@ -409,7 +409,7 @@ class TrackWorld:
 
     def update_done_reasons(self) -> None:
         """The termination reasons of the envs whose episode ended in the last call."""
-        for env in np.flatnonzero(self.state.reason).tolist():
+        for env in self.state.reason.nonzero()[0].tolist():
             self.done_reason[env] = REASONS[int(self.state.reason[env])]
 
     # ------------------------------------------------------------------ reading one env
@@ -431,19 +431,20 @@ class TrackWorld:
 
     def observation(self, env: int) -> dict[str, Any]:
         """Env ``env``'s ``TrackLoop-v0`` observation (new arrays)."""
-        batch = self.observations(np.array([env]))
+        batch = self.observations(slice(env, env + 1))  # views: no index array
         observation = {key: value[0] for key, value in batch.items()}
         observation["dbw_enabled"] = int(observation["dbw_enabled"])
         return observation
 
-    def observations(self, rows: NDArray[np.int64] | None = None) -> dict[str, Any]:
-        """The ``TrackLoop-v0`` observations of envs ``rows`` (default: all), each key's
-        values stacked along a leading axis (new arrays)."""
+    def observations(self, rows: NDArray[np.int64] | slice | None = None) -> dict[str, Any]:
+        """The ``TrackLoop-v0`` observations of envs ``rows`` (default: all; an index
+        array or a slice), each key's values stacked along a leading axis (new arrays)."""
         st, setup = self.state, self.setup
-        rows = np.arange(self.envs) if rows is None else rows
+        rows = slice(None) if rows is None else rows
+        envs = range(self.envs)[rows] if isinstance(rows, slice) else rows.tolist()
         # The columns as float64 (the line index cast as a stack would), then float32;
         # filled in place, which costs a fraction of np.column_stack for one env.
-        columns = np.empty((len(rows), 7))
+        columns = np.empty((len(envs), 7))
         columns[:, 0:5] = st.vehicle[rows][:, _OBSERVED_CAR_COLUMNS]
         columns[:, 5] = st.next_line[rows]
         columns[:, 6] = st.line_distance[rows]
@@ -462,7 +463,7 @@ class TrackWorld:
                 float(st.vehicle[env, X]), float(st.vehicle[env, Y]),
                 float(st.vehicle[env, YAW]), self.track.light_positions,
                 self.track.light_yaw, st.light_states[env], self.camera_rngs[env])
-                for env in rows.tolist()])
+                for env in envs])
         if setup.obstacle_count:
             observation["obstacles"] = st.obstacles[rows].astype(np.float32)
         return observation
