@@ -11,6 +11,8 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet torch==2.13.0
 	$(PY) -m pip install --quiet -e ".[dev,ray,capstone,video,tuning]"
+	# Compile every env's kernels now (cached in __pycache__), so the first env step is warm.
+	$(PY) -m sdc_gym.precompile
 	touch $(STAMP)
 
 # The HTML report's test opens it in a real headless browser: Debian's chromium, installed
