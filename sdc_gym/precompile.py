@@ -132,6 +132,8 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--envs", nargs="+", default=None,
                         help="env ids, each in its own family (default: all four envs)")
     args = parser.parse_args(argv)
+    if args.workers is not None and args.workers < 1:
+        parser.error(f"--workers {args.workers}: a number of processes, 1 or more")
     families = [(env_id,) for env_id in args.envs] if args.envs else FAMILIES
     precompile(families, workers=args.workers)
 

@@ -39,3 +39,14 @@ def test_after_precompiling_an_env_its_first_use_here_compiles_nothing() -> None
     finally:
         event.unregister("numba:compile", counter)
     assert counter.count == 0
+
+
+def test_a_worker_count_below_one_is_refused_naming_the_argument(capsys) -> None:
+    import pytest
+
+    from sdc_gym.precompile import main
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--workers", "0"])
+    assert exit_info.value.code == 2
+    assert "--workers 0: a number of processes, 1 or more" in capsys.readouterr().err
