@@ -34,9 +34,13 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import train  # noqa: E402
+import train
 
 ENV_ID = "sdc_gym/HighwayLoopBehavior-v0"
+
+
+OVERRIDES: dict[str, Any] = {}
+"""``--batch-size`` and ``--n-steps`` from the command line, over the project's values."""
 
 
 def ppo_settings(n_envs: int) -> dict[str, Any]:
@@ -46,6 +50,7 @@ def ppo_settings(n_envs: int) -> dict[str, Any]:
     rollout = int(hyper.pop("n_envs")) * int(hyper["n_steps"])
     hyper.pop("timesteps", None)
     hyper["n_steps"] = max(1, rollout // n_envs)
+    hyper.update(OVERRIDES)
     return hyper
 
 
@@ -126,7 +131,8 @@ def torchrl_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
         return nn.Sequential(*layers, nn.Linear(size, out))
 
     actor = ProbabilisticActor(TensorDictModule(mlp(n_act), ["observation"], ["logits"]),
-                               in_keys=["logits"], distribution_class=torch.distributions.Categorical,
+                               in_keys=["logits"],
+                               distribution_class=torch.distributions.Categorical,
                                return_log_prob=True)
     critic = ValueOperator(mlp(1), in_keys=["observation"])
     loss = ClipPPOLoss(actor, critic, clip_epsilon=hyper["clip_range"],
@@ -214,7 +220,18 @@ def main() -> None:
     parser.add_argument("--threads", type=int, default=1, help="torch threads per case")
     parser.add_argument("--cases", default="sb3,sb3-noop,torchrl,torchrl-noop",
                         help=f"comma-separated, of {', '.join(CASES)}")
+    parser.add_argument("--batch-size", type=int, default=None,
+                        help="PPO minibatch (default: the project's)")
+    parser.add_argument("--n-steps", type=int, default=None,
+                        help="PPO steps per env per rollout (default: the project's rollout "
+                             "size / E)")
     args = parser.parse_args()
+    for name in ("batch_size", "n_steps"):
+        value = getattr(args, name)
+        if value is not None:
+            if value < 1:
+                parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
+            OVERRIDES[name] = value
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     for case in cases:
         if case not in CASES:
