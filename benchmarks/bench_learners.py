@@ -22,6 +22,7 @@ the shared machine's load hits them alike), with the ratio of medians to ``sb3``
 from __future__ import annotations
 
 import argparse
+import importlib.util
 import statistics
 import sys
 import time
@@ -218,8 +219,9 @@ def main() -> None:
     parser.add_argument("--samples", type=int, default=65_536, help="samples timed per case")
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--threads", type=int, default=1, help="torch threads per case")
-    parser.add_argument("--cases", default="sb3,sb3-noop,torchrl,torchrl-noop",
-                        help=f"comma-separated, of {', '.join(CASES)}")
+    parser.add_argument("--cases", default=None,
+                        help=f"comma-separated, of {', '.join(CASES)} (default: sb3, "
+                             "sb3-noop, and torchrl, torchrl-noop when torchrl imports)")
     parser.add_argument("--batch-size", type=int, default=None,
                         help="PPO minibatch (default: the project's)")
     parser.add_argument("--n-steps", type=int, default=None,
@@ -232,10 +234,23 @@ def main() -> None:
             if value < 1:
                 parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
             OVERRIDES[name] = value
+    have_torchrl = importlib.util.find_spec("torchrl") is not None
+    if args.cases is None:
+        args.cases = "sb3,sb3-noop" + (",torchrl,torchrl-noop" if have_torchrl else "")
+        if not have_torchrl:
+            print("torchrl is not installed (not a project dependency): its cases are left "
+                  "out; see --cases")
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     for case in cases:
         if case not in CASES:
             parser.error(f"--cases: unknown case {case!r}; choices: {', '.join(CASES)}")
+    missing = [case for case in cases if case.startswith("torchrl")] \
+        if not have_torchrl else []
+    if missing:  # not among the project's dependencies: a benchmark-only comparison
+        parser.error(f"--cases {','.join(missing)}: needs torchrl, which the project does "
+                     "not install (pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 "
+                     "pyvers, into a separate --target on PYTHONPATH, keeps torch 2.13.0), "
+                     "or leave them out: --cases sb3,sb3-noop,rllib")
     warnings.filterwarnings("ignore")
     hyper = ppo_settings(args.envs)
     print(f"{ENV_ID}, E={args.envs}, PPO: n_steps={hyper['n_steps']} per env "
