@@ -87,10 +87,12 @@ def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     from sdc_gym.envs.sb3 import SB3VecEnv
 
     torch.set_num_threads(threads)
-    vec = SB3VecEnv(ENV_ID, n_envs)
     if noop:
-        vec.vector.close()
-        vec.vector = NoopVecEnv(n_envs)
+        from bench_batched import NullVecEnv  # SB3's own cost: bench_batched's ceiling
+
+        vec = NullVecEnv(n_envs)
+    else:
+        vec = SB3VecEnv(ENV_ID, n_envs)
     hyper = ppo_settings(n_envs)
     model = PPO("MlpPolicy", vec, seed=0, verbose=0, device="cpu", **hyper)
     rollout = n_envs * hyper["n_steps"]
