@@ -64,7 +64,7 @@ from sdc_gym.config import resolve_config
 from sdc_gym.envs.highway_behavior import HighwayLoopBehaviorEnv
 from sdc_gym.stack.highway.behavior import BehaviorDecision
 from sdc_gym.stack.highway.decisions import DecisionExecutor, HighwayDecision
-from sdc_gym.stack.highway.features import BehaviorFeatures
+from sdc_gym.stack.highway.features import OBSERVATION_TYPES, BehaviorFeatures
 from sdc_gym.stack.highway.shield import SafetyShield, ShieldParameters
 from sdc_gym.stack.highway.world_model import LaneView, TrackedCar, WorldModel
 
@@ -229,11 +229,16 @@ class HighwayEnvPolicyAgent:
 
     def __init__(self, model: Predictor, *, shield: SafetyShield | None = None,
                  slow_step_mps: float = 2.0, action: str = "discrete", lane_count: int = 3,
-                 sensing_range_m: float = SENSING_RANGE_M, name: str = "policy") -> None:
+                 sensing_range_m: float = SENSING_RANGE_M, name: str = "policy",
+                 observation: str = "nearest") -> None:
         if action not in ("discrete", "continuous"):
             raise ValueError(f"unknown action type {action!r}; valid: ['discrete', "
                              "'continuous']")
-        self.features = BehaviorFeatures(lane_count, sensing_range_m)
+        if observation not in OBSERVATION_TYPES:
+            raise ValueError(f"unknown observation type {observation!r}; valid: "
+                             f"{list(OBSERVATION_TYPES)}")
+        self.features = BehaviorFeatures(lane_count, sensing_range_m,
+                                         extended=observation == "extended")
         space = getattr(model, "observation_space", None)
         if space is not None and space.shape != self.features.space.shape:
             raise ValueError(f"the policy expects observations of shape {space.shape}; a "
@@ -291,4 +296,5 @@ def highway_env_policy_agent(kind: str, path: str | Path, *, lane_count: int = 3
     return HighwayEnvPolicyAgent(load_model(kind, path), shield=shield,
                                  slow_step_mps=float(cfg["slow_step_mps"]),
                                  action=cfg["action"], lane_count=lane_count,
+                                 observation=cfg["observation"],
                                  name=name or f"{kind}:{Path(path).stem}")

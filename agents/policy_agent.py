@@ -249,7 +249,8 @@ def highway_policy_agent(env: gym.Env, kind: str, path: str | Path,
     executor = DecisionExecutor(shield, slow_step_mps=float(cfg["slow_step_mps"]))
     behavior = PolicyBehavior(
         load_model(kind, path), BehaviorFeatures(road.lane_count,
-                                                 perception.params.sensing_range),
+                                                 perception.params.sensing_range,
+                                                 extended=cfg["observation"] == "extended"),
         executor, _cycles_per_decision(int(cfg["decision_frames"]),
                                        int(unwrapped.steps_per_action)), cfg["action"])
     return LayeredHighwayAgent(name or f"{kind}:{Path(path).stem}", road, behavior, perception,

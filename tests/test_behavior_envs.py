@@ -43,6 +43,8 @@ def test_bad_config_and_actions_raise_clear_errors():
         highway(highway={"steps_per_action": 3})
     with pytest.raises(ConfigError, match="action"):
         highway(action="multi")
+    with pytest.raises(ConfigError, match=r"observation.*'nearest', 'extended'.*'second'"):
+        highway(observation="second")
     with pytest.raises(ConfigError, match="Valid keys"):
         highway(shield_on=True)
     with pytest.raises(ConfigError, match="multiple of"):
@@ -135,12 +137,41 @@ def test_track_stop_decision_stops_before_a_red_line_and_go_runs_it():
     assert results[0][0]["incidents"]["red_light"] == 1
 
 
-def test_trained_policy_drives_the_path_level_env_as_in_its_behavior_env(tmp_path):
+@pytest.mark.parametrize("tracking", [False, True])
+def test_extended_observation_of_the_batch_is_that_of_its_world_models(tracking):
+    """The batch's extended entries (one kernel over the perceived car arrays, or the
+    Kalman tracks) equal BehaviorFeatures.encode of each env's world model with its cars,
+    step after step in traffic; the second car is seen."""
+    import dataclasses
+
+    from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
+
+    vec = HighwayLoopBehaviorVectorEnv(3, config={"observation": "extended",
+                                                  "kalman_tracking": tracking,
+                                                  "highway": {"max_duration": 40.0}})
+    assert vec.single_observation_space.shape == (34,)
+    obs, _ = vec.reset(seed=7)
+    batch = vec.batch
+    rng = np.random.default_rng(0)
+    seen_second = 0
+    for _ in range(60):
+        obs, *_ = vec.step(rng.integers(0, 9, size=3))
+        for env in range(3):
+            model = dataclasses.replace(batch.world_model(env), cars=batch.sensed.cars(env))
+            np.testing.assert_array_equal(
+                obs[env], batch.features.encode(model, batch.executor[env]))
+        seen_second += int((obs[:, 25::3] < 1.0).sum())
+    assert seen_second > 0
+
+
+@pytest.mark.parametrize("observation", ["nearest", "extended"])
+def test_trained_policy_drives_the_path_level_env_as_in_its_behavior_env(tmp_path,
+                                                                          observation):
     """The ppo: agent on HighwayLoop-v0 (12 frames per step) repeats the behavior env's
     episode exactly: same perception, executor, features and motion layer."""
     from stable_baselines3 import PPO
 
-    config = {"highway": {"max_duration": 30.0}}
+    config = {"highway": {"max_duration": 30.0}, "observation": observation}
     model = PPO("MlpPolicy", highway(**config), n_steps=64, batch_size=64, n_epochs=1, seed=0)
     model.learn(64)
     path = tmp_path / "policy.zip"

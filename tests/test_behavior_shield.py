@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -16,7 +17,7 @@ from sdc_gym.stack.highway.decisions import (
 )
 from sdc_gym.stack.highway.features import BehaviorFeatures
 from sdc_gym.stack.highway.shield import SafetyShield
-from sdc_gym.stack.highway.world_model import LaneView, WorldModel
+from sdc_gym.stack.highway.world_model import LaneView, TrackedCar, WorldModel
 
 WIDTH = 4.0
 
@@ -157,3 +158,40 @@ def test_features_of_a_constructed_world():
     # The bend forbids lane changes: neither move is allowed.
     assert value["allowed_left"] == 0.0 and value["allowed_right"] == 0.0
     assert value["since_change"] == 1.0  # 10 s since the start, clipped
+
+
+def test_extended_features_see_the_second_car_and_the_lead_s_intent():
+    """observation "extended": per lane the second car ahead (gap and relative speed) and
+    the lateral rate of the lane's car ahead, computed from the world model's cars."""
+    features = BehaviorFeatures(3, sensing_range_m=200.0, extended=True)
+    executor = DecisionExecutor(SafetyShield())
+    base = world({0: {"ahead_gap": 50.0, "ahead_speed": 25.0},
+                  1: {"ahead_gap": 30.0, "ahead_speed": 18.0},
+                  2: {"behind_gap": 8.0, "behind_speed": 22.0}}, speed=20.0)
+    cars = (
+        TrackedCar(10, 550.0, 2.0, 25.0, 1.0, 0, 50.0),     # lane 0's car ahead, moving right
+        TrackedCar(11, 620.0, 2.0, 15.0, 0.0, 0, 120.0),    # lane 0's second car
+        TrackedCar(12, 900.0, 2.0, 30.0, 0.0, 0, 400.0),    # beyond the sensing range
+        TrackedCar(13, 480.0, 2.0, 30.0, 0.0, 0, -20.0),    # behind: never "ahead"
+        TrackedCar(14, 530.0, 6.0, 18.0, -3.0, 1, 30.0),    # lane 1's car ahead, moving left
+        TrackedCar(22, 492.0, 10.0, 22.0, 0.0, 2, -8.0),    # lane 2's car behind
+    )
+    model = dataclasses.replace(base, cars=cars, lanes=(
+        dataclasses.replace(base.lanes[0], ahead_id=10),
+        dataclasses.replace(base.lanes[1], ahead_id=14), base.lanes[2]))
+    executor.execute(model, HighwayDecision(0))
+    x = features.encode(model, executor)
+    names = features.names()
+    assert x.shape == (34,) == features.space.shape and features.space.contains(x)
+    value = dict(zip(names, x.tolist(), strict=True))
+    assert value["lane_0_second_gap"] == pytest.approx(120.0 / 200.0)
+    assert value["lane_0_second_speed"] == pytest.approx((15.0 - 20.0) / CRUISE_SPEED_MPS)
+    assert value["lane_0_ahead_lateral"] == pytest.approx(0.5)
+    # Lane 1: one car ahead, none beyond it; its lead moves left at 3 m/s (clipped to -1).
+    assert value["lane_1_second_gap"] == 1.0 and value["lane_1_second_speed"] == 0.0
+    assert value["lane_1_ahead_lateral"] == -1.0
+    # Lane 2: nobody ahead at all.
+    assert (value["lane_2_second_gap"], value["lane_2_ahead_lateral"]) == (1.0, 0.0)
+    # The first 25 entries are the nearest observation's, unchanged.
+    nearest = BehaviorFeatures(3, sensing_range_m=200.0).encode(model, executor)
+    np.testing.assert_array_equal(x[:25], nearest)

@@ -66,7 +66,10 @@ class HighwayLoopBehaviorEnv(gym.Env):
     way, time since the last change, curvature ahead, whether a left / right move would
     start a change now, and per lane the gap and relative speed of the nearest car ahead
     and behind, normalised. The table is in :mod:`sdc_gym.stack.highway.features`;
-    ``env.unwrapped.feature_names`` names each entry.
+    ``env.unwrapped.feature_names`` names each entry. ``observation: "extended"`` adds
+    ``3 n`` entries (34 on the default highway): per lane the gap and relative speed of the
+    second car ahead (a lane open beyond its first car, or a queue) and the lateral rate of
+    the car ahead (its lane-change intent).
 
     ## Rewards
 
@@ -105,6 +108,8 @@ class HighwayLoopBehaviorEnv(gym.Env):
     * ``decision_frames``: physics frames per decision (the path-level env's
       ``steps_per_action``).
     * ``action``: ``"discrete"`` or ``"continuous"``.
+    * ``observation``: ``"nearest"`` (the nearest car ahead and behind per lane) or
+      ``"extended"`` (also the second car ahead and the lead's lateral rate per lane).
     * ``safety_shield`` and ``shield`` (its :class:`ShieldParameters`), ``slow_step_mps``,
       ``kalman_tracking`` (perception filters every car, for noisy sensors),
       ``reward_lane_change``, ``reward_refused``, ``reward_room_ahead``,

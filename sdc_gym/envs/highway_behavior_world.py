@@ -26,7 +26,11 @@ from sdc_gym.stack.highway.decisions import (
     HighwayDecision,
     decision_codes,
 )
-from sdc_gym.stack.highway.features import BehaviorFeatures
+from sdc_gym.stack.highway.features import (
+    LATERAL_SCALE_MPS,
+    OBSERVATION_TYPES,
+    BehaviorFeatures,
+)
 from sdc_gym.stack.highway.motion import MotionBatch, MotionParameters, SeedMotionPlanner
 from sdc_gym.stack.highway.perception import (
     Perception,
@@ -49,6 +53,7 @@ BEHAVIOR_DEFAULTS: dict[str, Any] = {
     "highway": {},                 # HighwayLoop-v0 config (not steps_per_action)
     "decision_frames": 12,         # 0.02 s frames per decision (0.24 s)
     "action": "discrete",          # "discrete" (Discrete(9)) or "continuous" (Box(2))
+    "observation": "nearest",      # "nearest" (Box(25)) or "extended" (+ 3 per lane)
     "safety_shield": True,
     "shield": dataclasses.asdict(ShieldParameters()),
     "slow_step_mps": 2.0,          # m/s below the current speed for "slow"
@@ -82,6 +87,8 @@ class HighwayBehaviorWorld:
         check_highway_behavior_config(cfg, owner)  # sdc_gym.validation
         require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
                 cfg["action"])
+        require(cfg["observation"] in OBSERVATION_TYPES, owner, "observation",
+                f"one of {OBSERVATION_TYPES}", cfg["observation"])
         require(cfg["slow_step_mps"] > 0, owner, "slow_step_mps", "> 0 m/s",
                 cfg["slow_step_mps"])
         highway_config = {"telemetry_info": False, **cfg["highway"],
@@ -104,7 +111,8 @@ class HighwayBehaviorWorld:
         self.executors = ExecutorBatch(self.shield, envs,
                                        slow_step_mps=float(cfg["slow_step_mps"]))
         self.executor = [DecisionExecutor.view(self.executors, env) for env in range(envs)]
-        self.features = BehaviorFeatures(road.lane_count, self.perception_params.sensing_range)
+        self.features = BehaviorFeatures(road.lane_count, self.perception_params.sensing_range,
+                                         extended=cfg["observation"] == "extended")
         self.discrete = cfg["action"] == "discrete"
         self.decision_period_s = PHYSICS_DT * cfg["decision_frames"]
         self.lane_change_reward = float(cfg["reward_lane_change"])
@@ -242,7 +250,28 @@ class HighwayBehaviorWorld:
             sensed.ego_d, sensed.ego_speed, world.road.lane_width, sensed.road_radius, times,
             executors.ints, executors.last_change, self.features.scales, rows,
             self.observations)
+        if self.features.extended:
+            self._encode_traffic(sensed, rows)
         return sensed
+
+    def _encode_traffic(self, sensed: SensedBatch, rows: NDArray[np.bool_]) -> None:
+        """The extended observation's traffic entries of ``rows`` (tracked envs, whose
+        cars are their Kalman tracks, one at a time)."""
+        features = self.features
+        plain = rows.copy()
+        for env in sensed.tracked:
+            plain[env] = False
+        behavior_kernel.encode_traffic_batch(
+            sensed.views, sensed.ids, sensed.car_lane, sensed.car_gap, sensed.speed,
+            sensed.d_rate, sensed.count, sensed.ego_speed, features.scales,
+            LATERAL_SCALE_MPS, plain, self.observations, features.base_size)
+        for env, columns in sensed.tracked.items():
+            if rows[env]:
+                ids, _, _, speed, d_rate, car_lane, car_gap = columns
+                behavior_kernel.encode_traffic(
+                    sensed.views[env], np.asarray(ids, dtype=np.int64), car_lane, car_gap,
+                    speed, d_rate, len(ids), sensed.ego_speed[env], features.scales,
+                    LATERAL_SCALE_MPS, self.observations[env], features.base_size)
 
     def _potentials(self, sensed: SensedBatch) -> FloatArray:
         """The shaping potential of every env (0 without shaping)."""

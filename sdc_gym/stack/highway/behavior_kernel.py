@@ -285,6 +285,58 @@ def encode_batch(shielded: bool, p: np.ndarray, views: np.ndarray, ego_lane: np.
 
 
 @njit(cache=True)
+def encode_traffic(views: np.ndarray, ids: np.ndarray, car_lane: np.ndarray,
+                   car_gap: np.ndarray, car_speed: np.ndarray, car_d_rate: np.ndarray,
+                   count: int, ego_speed: float, scales: np.ndarray, lateral_scale: float,
+                   out: np.ndarray, base: int) -> None:
+    """The extended observation's traffic entries into ``out[base:]``: per lane the second
+    car ahead (the nearest ahead in the lane, other than the lane view's car, at least as
+    far: gap / sensing range and relative speed / cruise speed; 1 and 0 when nobody) and
+    the lateral rate of the lane view's car ahead / ``lateral_scale`` (its lane-change
+    intent, positive moving right; 0 when nobody)."""
+    cruise, reach, rel_limit = scales[0], scales[1], scales[4]
+    n = views.shape[0]
+    for lane in range(n):
+        i = base + 3 * lane
+        first_gap, first_id = views[lane, AHEAD_GAP], views[lane, AHEAD_ID]
+        second_gap, second_speed = math.inf, 0.0
+        lateral = 0.0
+        for k in range(count):
+            if ids[k] == first_id and first_id != -1:
+                lateral = car_d_rate[k]
+                continue
+            gap = car_gap[k]
+            if (car_lane[k] == lane and gap >= 0.0 and gap < second_gap and gap <= reach
+                    and (first_id == -1 or gap >= first_gap)):
+                second_gap, second_speed = gap, car_speed[k]
+        if first_id == -1:
+            lateral = 0.0  # no first car: then no second either
+            second_gap = math.inf
+        if math.isinf(second_gap):
+            out[i] = 1.0
+            out[i + 1] = 0.0
+        else:
+            out[i] = min(second_gap / reach, 1.0)
+            rel = (second_speed - ego_speed) / cruise
+            out[i + 1] = min(max(rel, -rel_limit), rel_limit)
+        out[i + 2] = min(max(lateral / lateral_scale, -1.0), 1.0)
+
+
+@njit(cache=True)
+def encode_traffic_batch(views: np.ndarray, ids: np.ndarray, car_lane: np.ndarray,
+                         car_gap: np.ndarray, car_speed: np.ndarray, car_d_rate: np.ndarray,
+                         count: np.ndarray, ego_speed: np.ndarray, scales: np.ndarray,
+                         lateral_scale: float, rows: np.ndarray, out: np.ndarray,
+                         base: int) -> None:
+    """:func:`encode_traffic` for the envs with ``rows`` (``out`` ``(envs, size)``)."""
+    for e in range(views.shape[0]):
+        if rows[e]:
+            encode_traffic(views[e], ids[e], car_lane[e], car_gap[e], car_speed[e],
+                           car_d_rate[e], count[e], ego_speed[e], scales, lateral_scale,
+                           out[e], base)
+
+
+@njit(cache=True)
 def room(views: np.ndarray, ego_lane: int, target_lane: int, weight: float,
          reach: float) -> float:
     """The shaping potential: weight x room ahead in the target lane / sensing range."""
