@@ -53,6 +53,7 @@ import yaml
 
 import sdc_gym  # noqa: F401  (registers the env ids)
 from sdc_agents import checkpoints as ckpt
+from sdc_agents.policy_agent import algorithm_class
 from sdc_configs import config_path
 from sdc_configs import packaged as packaged_config
 from sdc_evaluation.files import atomic_write_text
@@ -62,6 +63,7 @@ from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
     ALGORITHMS,
     EVAL_DEFAULTS,
+    OFF_POLICY_ALGORITHMS,
     check_algorithm_space,
     check_hyperparams,
     check_run_config,
@@ -315,12 +317,6 @@ def validate(config: dict[str, Any], source: str) -> None:
                          f"{config['config']}: {error}") from None
 
 
-def algorithm_class(name: str) -> type:
-    import stable_baselines3
-
-    return getattr(stable_baselines3, name.upper())
-
-
 def make_vec_env(config: dict[str, Any], n_envs: int, seed: int,
                  vectorize: str = "batch") -> Any:
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
@@ -375,7 +371,7 @@ def main(argv: list[str] | None = None) -> Path:
 
     algo = algorithm_class(config["algo"])
     checkpoints = args.output / "checkpoints"
-    off_policy = config["algo"] in ("dqn", "sac")
+    off_policy = config["algo"] in OFF_POLICY_ALGORITHMS
     point = None
     if args.resume:
         try:

@@ -45,8 +45,9 @@ from sdc_gym.stack.track.decisions import (
 from sdc_gym.stack.track.detector import GroundTruthLightSource
 from sdc_gym.validation.yaml_files import read_yaml
 
-SB3_KINDS = ("ppo", "dqn", "sac", "a2c")
-"""Agent spec prefixes of SB3 models: ``<kind>:<path to model.zip>``."""
+SB3_KINDS = ("ppo", "dqn", "qrdqn", "sac", "a2c")
+"""Agent spec prefixes of SB3 models: ``<kind>:<path to model.zip>`` (``qrdqn``: sb3-contrib's
+QR-DQN, the same interface)."""
 RLLIB_KIND = "rllib"
 """The agent spec prefix of RLlib checkpoints: ``rllib:<checkpoint folder>``."""
 POLICY_KINDS = (*SB3_KINDS, RLLIB_KIND)
@@ -83,11 +84,22 @@ def load_model(kind: str, path: str | Path) -> Any:
         from sdc_agents.rllib_policy import load_rllib_policy  # Ray only when used
 
         return load_rllib_policy(model_path)
-    import stable_baselines3
-
     if not model_path.is_file():
         raise ValueError(f"{kind}: no model file at {model_path}")
-    return getattr(stable_baselines3, kind.upper()).load(model_path, device="cpu")
+    return algorithm_class(kind).load(model_path, device="cpu")
+
+
+def algorithm_class(kind: str) -> type:
+    """The SB3 class of ``kind``: stable-baselines3's, or sb3-contrib's for ``qrdqn``."""
+    if kind not in SB3_KINDS:
+        raise ValueError(f"unknown SB3 algorithm {kind!r}; valid: {list(SB3_KINDS)}")
+    if kind == "qrdqn":
+        from sb3_contrib import QRDQN
+
+        return QRDQN
+    import stable_baselines3
+
+    return getattr(stable_baselines3, kind.upper())
 
 
 MAX_MODEL_DATA_BYTES = 16 * 2**20

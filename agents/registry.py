@@ -72,7 +72,7 @@ AGENTS: dict[str, AgentFactory] = {
 }
 
 
-POLICY_KINDS: Final = ("ppo", "dqn", "sac", "a2c", "rllib")
+POLICY_KINDS: Final = ("ppo", "dqn", "qrdqn", "sac", "a2c", "rllib")
 """The trained-policy kinds (sdc_agents.policy_agent.POLICY_KINDS, without importing it)."""
 AgentKindFactory = Callable[..., Agent]
 """``factory(argument, env, **options)``: builds the agent of a ``"kind:argument"`` spec."""

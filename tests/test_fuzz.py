@@ -587,4 +587,4 @@ def test_generated_run_configs_and_hyperparameters_resolve_or_exit_clearly(value
         assert isinstance(error.code, str) and error.code, error
         assert not (folder / "out").exists()
         return
-    assert config["algo"] in ("ppo", "dqn", "sac", "a2c")
+    assert config["algo"] in ("ppo", "dqn", "qrdqn", "sac", "a2c")

@@ -72,24 +72,38 @@ def test_ppo_run_folder_and_resume_after_an_interruption(tmp_path, capsys):
         train.main(args)
 
 
-def test_dqn_resumes_with_its_replay_buffer(tmp_path):
-    from stable_baselines3 import DQN
+@pytest.mark.parametrize("algo", ["dqn", "qrdqn"])
+def test_value_based_runs_resume_with_their_replay_buffer(tmp_path, algo):
+    """DQN and sb3-contrib's QR-DQN: checkpoints with the buffer, resume, and the model
+    drives the path-level env as the agent ``<algo>:model.zip``."""
+    import gymnasium as gym
     from stable_baselines3.common.save_util import load_from_pkl
 
-    output = tmp_path / "dqn"
-    train.main(["--config", str(write_config(tmp_path)), "--algo", "dqn", "--output",
+    from sdc_agents.policy_agent import algorithm_class
+    from sdc_agents.registry import make_agent
+
+    output = tmp_path / algo
+    train.main(["--config", str(write_config(tmp_path)), "--algo", algo, "--output",
                 str(output), "--n-envs", "1", "--timesteps", "300", "--checkpoint-every",
                 "150", "--hp", "learning_starts=50", "--hp", "buffer_size=1000",
                 "--eval-every", "0", "--no-progress"])
     names = sorted(p.name for p in (output / "checkpoints").iterdir())
-    assert names == ["dqn_150_steps.zip", "dqn_300_steps.zip",
-                     "dqn_replay_buffer_150_steps.pkl", "dqn_replay_buffer_300_steps.pkl"]
-    (output / "checkpoints" / "dqn_300_steps.zip").unlink()
-    (output / "checkpoints" / "dqn_replay_buffer_300_steps.pkl").unlink()
+    assert names == [f"{algo}_150_steps.zip", f"{algo}_300_steps.zip",
+                     f"{algo}_replay_buffer_150_steps.pkl", f"{algo}_replay_buffer_300_steps.pkl"]
+    (output / "checkpoints" / f"{algo}_300_steps.zip").unlink()
+    (output / "checkpoints" / f"{algo}_replay_buffer_300_steps.pkl").unlink()
     train.main(["--output", str(output), "--resume", "--no-progress"])
-    assert 300 <= DQN.load(output / "model.zip").num_timesteps < 310
+    model = algorithm_class(algo).load(output / "model.zip")
+    assert type(model).__name__ == {"dqn": "DQN", "qrdqn": "QRDQN"}[algo]
+    assert 300 <= model.num_timesteps < 310
     # The resumed run started from the 150-step buffer: its final buffer holds both parts.
     assert load_from_pkl(output / "replay_buffer").size() >= 300
+    env = gym.make("sdc_gym/HighwayLoop-v0", config={"steps_per_action": 12,
+                                                     "max_duration": 5.0})
+    agent = make_agent(f"{algo}:{output / 'model.zip'}", env)
+    observation, _ = env.reset(seed=0)
+    agent.reset()
+    env.step(agent.act(observation))
 
 
 def test_bad_overrides_and_configs_are_clear_errors(tmp_path):

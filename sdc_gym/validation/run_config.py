@@ -23,7 +23,9 @@ from typing import Any, Final
 from sdc_gym.config import ConfigError, excerpt
 from sdc_gym.validation.rules import Choice, Number, Rule, check_finite, check_value, is_real
 
-ALGORITHMS: Final = ("ppo", "dqn", "sac", "a2c")
+ALGORITHMS: Final = ("ppo", "dqn", "qrdqn", "sac", "a2c")
+OFF_POLICY_ALGORITHMS: Final = ("dqn", "qrdqn", "sac")
+"""The algorithms with a replay buffer (checkpointed beside the model)."""
 EVAL_DEFAULTS: Final = {"every": 50_000, "episodes": 4, "seed": 10_000}
 SEED_LIMIT: Final = 2**32 - 1  # numpy's and SB3's seeds are 32-bit
 MAX_N_ENVS: Final = 1024  # processes or a batch; memory and time bound it long before
@@ -218,7 +220,7 @@ def resolved_policy_kwargs(hyperparams: Mapping[str, Any]) -> dict[str, Any]:
 
 ACTION_SPACES: Final = {"ppo": ("Box", "Discrete", "MultiDiscrete", "MultiBinary"),
                         "a2c": ("Box", "Discrete", "MultiDiscrete", "MultiBinary"),
-                        "dqn": ("Discrete",), "sac": ("Box",)}
+                        "dqn": ("Discrete",), "qrdqn": ("Discrete",), "sac": ("Box",)}
 """The action spaces each algorithm learns (stable-baselines3's and RLlib's alike)."""
 
 
