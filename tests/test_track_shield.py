@@ -33,9 +33,10 @@ def test_go_under_the_shield_stops_at_a_red_line_and_without_it_runs_the_light()
         env.reset(seed=0)
         modes = set()
         for _ in range(30):
-            _, _, terminated, truncated, info = env.step(GO)
+            info = env.step(GO)[-1]
             modes.add(info["behavior"]["decision"])
         ends[shield] = info
+        assert ("stop_red" in modes) == shield  # the rule's stop, executed by the shield
     stopped = ends[True]
     assert stopped["incidents_red_light"] == 0 and stopped["speed"] == 0.0
     assert 0.0 < FIRST_LINE_S - (stopped["s"] + SIM_FRONT_OFFSET_M) < 2.0  # the stack's gap
@@ -85,4 +86,5 @@ def test_policy_executor_on_the_track_env_drives_as_the_behavior_env_under_the_s
 def test_the_shield_flag_must_be_a_bool():
     with pytest.raises(ConfigError, match="red_light_shield"):
         gym.make(TRACK, config={"red_light_shield": "yes"})
-    assert np.asarray(gym.make(TRACK, config={"red_light_shield": True}).reset(seed=0)[0]).shape == (12,)
+    obs, _ = gym.make(TRACK, config={"red_light_shield": True}).reset(seed=0)
+    assert np.asarray(obs).shape == (12,)
