@@ -292,7 +292,8 @@ def track_policy_agent(env: gym.Env, kind: str, path: str | Path,
         return action
 
     behavior = TrackDecisionBehavior(features, continuous=continuous, chooser=choose,
-                                     decision_period_s=float(cfg["decision_period_s"]))
+                                     decision_period_s=float(cfg["decision_period_s"]),
+                                     red_light_shield=bool(cfg["red_light_shield"]))
     return dbw_stack_for_env(env, GroundTruthLightSource(), behavior=behavior,
                              name=name or f"{kind}:{Path(path).stem}")
 

@@ -61,7 +61,9 @@ class TrackLoopBehaviorEnv(gym.Env):
 
     ``gym.make("sdc_gym/TrackLoopBehavior-v0", config={...})``: ``track`` (any
     ``TrackLoop-v0`` key; ``observe_light_states`` is always on), ``decision_period_s``
-    (a multiple of the track env's step), ``action``. Unknown keys raise ``ConfigError``.
+    (a multiple of the track env's step), ``action``, ``red_light_shield`` (default
+    false: the rule's stops override a go, so that the policy learns the approach only;
+    :mod:`~sdc_gym.stack.track.decisions`). Unknown keys raise ``ConfigError``.
 
     ## Version History
 

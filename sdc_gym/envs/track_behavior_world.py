@@ -47,6 +47,7 @@ BEHAVIOR_DEFAULTS: dict[str, Any] = {
     "track": {},                  # TrackLoop-v0 config
     "decision_period_s": 1.0,     # s between decisions
     "action": "discrete",         # "discrete" (Discrete(4)) or "continuous" (Box(2))
+    "red_light_shield": False,    # the rule's stops override a go (TrackDecisionBehavior)
 }
 
 
@@ -67,6 +68,8 @@ class TrackBehaviorWorld:
                 "a mapping of TrackLoop-v0 config keys", cfg["track"])
         require(cfg["action"] in ACTION_TYPES, owner, "action", f"one of {ACTION_TYPES}",
                 cfg["action"])
+        require(isinstance(cfg["red_light_shield"], bool), owner, "red_light_shield",
+                "true or false", cfg["red_light_shield"])
         check_track_behavior_config(cfg, owner)  # the track's step first: it is used here
         step_s = PHYSICS_DT * cfg["track"].get("steps_per_action", 1)
         ticks = cfg["decision_period_s"] / step_s
@@ -89,13 +92,15 @@ class TrackBehaviorWorld:
         self.continuous = cfg["action"] == "continuous"
         self.features = TrackFeatures(abs(setup.params.decel_limit))
         # The agent dbw_stack_for_env builds for the env: the batch runs its nodes.
-        behavior = TrackDecisionBehavior(self.features, continuous=self.continuous)
+        shield = cfg["red_light_shield"]
+        behavior = TrackDecisionBehavior(self.features, continuous=self.continuous,
+                                         red_light_shield=shield)
         self.agent = dbw_stack_for_env(setup, GroundTruthLightSource(),
                                        name="behavior_env_stack", behavior=behavior)
         self.stack_constants = stack_constants(
             self.agent, continuous=self.continuous, speed_margin=DEFAULT_SPEED_MARGIN_MPS,
             max_decel=self.features.max_decel,
-            comfortable_decel=self.features.comfortable_decel)
+            comfortable_decel=self.features.comfortable_decel, red_light_shield=shield)
         self.stack = stack_state(envs, self.agent.updater.count)
         self.observation_space = self.features.space
         self.action_space: spaces.Space[Any] = (

@@ -19,6 +19,15 @@ As a continuous ``Box(-1, 1, (2,))`` action: the cruise speed from 0 (-1) to the
 :class:`TrackDecisionBehavior` the :class:`~sdc_gym.stack.track.behavior.TrackBehaviorPolicy`
 that executes the current action. The behavior-level env sets the action between its
 steps; a trained policy running on the path-level env gives it a ``chooser`` instead.
+
+The red-light shield (``red_light_shield``, off by default): the rule-based
+:class:`~sdc_gym.stack.track.behavior.StopAtRedLights` runs beside the policy, and whenever
+it stops (a red light it can stop for, a yellow one it can stop for comfortably, a stop it
+has committed to) while the action goes, the rule's stop is executed at the action's
+speed. The policy keeps the speed and may stop where the rule would not; it cannot run a
+light the rule stops for, so it can never run a red the rule would not (the rule runs none
+on the default track). What is left to learn is the approach: how fast to drive toward a
+light (shielded RL, as the highway's safety shield).
 """
 
 from __future__ import annotations
@@ -34,6 +43,8 @@ from sdc_gym.lights.traffic_lights import GREEN, RED, UNKNOWN, YELLOW
 from sdc_gym.stack.track.behavior import (
     DEFAULT_COMFORTABLE_DECEL_MPS2,
     DEFAULT_SPEED_MARGIN_MPS,
+    StopAtRedLights,
+    StopAtRedParameters,
     TrackBehaviorDecision,
     TrackSituation,
 )
@@ -151,18 +162,24 @@ class TrackDecisionBehavior:
         chooser: when given, called with the observation to pick a new action every
             ``decision_period_s`` (a trained policy on the path-level env); otherwise the
             owner sets :attr:`action`.
+        red_light_shield: the rule's stops override the action's go (module docstring).
     """
 
     def __init__(self, features: TrackFeatures, *, continuous: bool = False,
                  chooser: Callable[[NDArray[np.float32]], Any] | None = None,
-                 decision_period_s: float = 1.0) -> None:
+                 decision_period_s: float = 1.0, red_light_shield: bool = False) -> None:
         self.features = features
         self.continuous = continuous
         self.chooser = chooser
         self.decision_period_s = decision_period_s
+        self.shield = StopAtRedLights(StopAtRedParameters(
+            max_decel_mps2=features.max_decel,
+            comfortable_decel_mps2=features.comfortable_decel)) if red_light_shield else None
         self.reset()
 
     def reset(self) -> None:
+        if self.shield is not None:
+            self.shield.reset()
         self.action: Any = np.array([1.0, -1.0], np.float32) if self.continuous else 0
         self.situation: TrackSituation | None = None
         self.decision: TrackBehaviorDecision | None = None
@@ -189,5 +206,11 @@ class TrackDecisionBehavior:
             self._next_choice = situation.time_s + self.decision_period_s
         else:
             self.state_time(situation)
-        self.decision = action_decision(self.action, situation, self.continuous)
-        return self.decision
+        decision = action_decision(self.action, situation, self.continuous)
+        if self.shield is not None:
+            rule = self.shield.decide(situation)  # every cycle: it keeps its commitment
+            if rule.stop_waypoint >= 0 and decision.stop_waypoint < 0:
+                decision = TrackBehaviorDecision(decision.target_speed_mps,
+                                                 rule.stop_waypoint, rule.mode)
+        self.decision = decision
+        return decision

@@ -7,8 +7,9 @@ node kernels of :mod:`sdc_gym.stack.track.node_kernels`, with every node's state
 arrays over the env axis. The light source is the env's ground truth (the observation's
 light states) and the behavior layer the RL decision executor
 (:class:`~sdc_gym.stack.track.decisions.TrackDecisionBehavior`, its action set between
-decisions): the stack of ``sdc_gym/TrackLoopBehavior-v0``. Its parameters are those of
-the agent that :func:`~sdc_gym.stack.track.dbw_stack.dbw_stack_for_env` builds for the env
+decisions, with its red-light shield when on): the stack of
+``sdc_gym/TrackLoopBehavior-v0``. Its parameters are those of the agent that
+:func:`~sdc_gym.stack.track.dbw_stack.dbw_stack_for_env` builds for the env
 (:func:`stack_constants` reads them off it), so the batch drives exactly as that agent.
 
 The stack sees what the agent sees in the env's observation: float32 pose, speed and
@@ -24,6 +25,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.kernel_compiler import kernel
 from sdc_gym.lights.traffic_lights import UNKNOWN
+from sdc_gym.stack.track.behavior import SQUARE
 from sdc_gym.stack.track.control_kernels import (
     FollowerConstants,
     FollowerState,
@@ -50,6 +52,7 @@ from sdc_gym.stack.track.node_kernels import (
     in_gate,
     node_due,
     state_time,
+    stop_at_red,
     update_waypoints,
     updater_state,
 )
@@ -78,6 +81,8 @@ class StackConstants(NamedTuple):
     speed_margin: float
     max_decel: float  # features
     comfortable_decel: float
+    red_light_shield: bool  # the rule's stops override the RL action's go
+    square: float  # 2.0, the stopping test's exponent at run time (behavior.SQUARE)
 
 
 class StackState(NamedTuple):
@@ -107,11 +112,14 @@ class StackState(NamedTuple):
     key_line: IntArray
     key_state: IntArray
     state_since: FloatArray
+    shield_for: IntArray  # the line the shield's rule is committed to stop at (-1: none)
 
 
 def stack_constants(agent: DBWStackAgent, *, continuous: bool, speed_margin: float,
-                    max_decel: float, comfortable_decel: float) -> StackConstants:
-    """The constants of ``agent``'s nodes (built by ``dbw_stack_for_env`` for the env).
+                    max_decel: float, comfortable_decel: float,
+                    red_light_shield: bool = False) -> StackConstants:
+    """The constants of ``agent``'s nodes (built by ``dbw_stack_for_env`` for the env);
+    ``red_light_shield``: the executor's shield (``TrackDecisionBehavior``).
     The batch runs pure pursuit only: the MPC follower solves a QP with OSQP at every
     follower tick, which cannot run inside the compiled loop."""
     if not isinstance(agent.follower, PurePursuit):
@@ -125,7 +133,7 @@ def stack_constants(agent: DBWStackAgent, *, continuous: bool, speed_margin: flo
         agent.detector.constants, agent.updater.constants, agent.follower.constants,
         agent.controller.constants, float(agent.speed_limit_mps), float(agent.stop_margin_m),
         bool(agent.track.light_count), bool(continuous), float(speed_margin),
-        float(max_decel), float(comfortable_decel))
+        float(max_decel), float(comfortable_decel), bool(red_light_shield), SQUARE)
 
 
 def stack_state(envs: int, final_count: int) -> StackState:
@@ -137,7 +145,7 @@ def stack_state(envs: int, final_count: int) -> StackState:
                       twist_state(envs), b(), f(), i(), i(), b(),
                       np.zeros((envs, final_count)), np.zeros((envs, final_count)),
                       np.zeros((envs, final_count)), b(), f(), f(), f(), i(), f(), f(), i(),
-                      i(), f())
+                      i(), f(), i())
 
 
 @kernel
@@ -167,6 +175,7 @@ def reset_stack(c: StackConstants, st: StackState, env: int) -> None:
     st.key_line[env] = -2
     st.key_state[env] = -2
     st.state_since[env] = 0.0
+    st.shield_for[env] = -1
 
 
 @kernel
@@ -205,6 +214,14 @@ def stack_tick(c: StackConstants, st: StackState, env: int, x: float, y: float, 
         target, stop_waypoint, mode = action_decision(
             c.continuous, st.action_index[env], st.action_speed[env], st.action_stop[env],
             c.speed_limit, c.speed_margin, waypoint)
+        if c.red_light_shield:
+            # The rule's stop (StopAtRedLights, its commitment kept per env) overrides a go.
+            _, rule_waypoint, rule_mode, st.shield_for[env] = stop_at_red(
+                c.max_decel, c.comfortable_decel, True, c.speed_margin, c.square,
+                st.shield_for[env], speed, c.speed_limit, line, waypoint,
+                distance - c.stop_margin, state)
+            if rule_waypoint >= 0 and stop_waypoint < 0:
+                stop_waypoint, mode = rule_waypoint, rule_mode
         st.has_decision[env] = True
         st.decision_speed[env] = target
         st.decision_waypoint[env] = stop_waypoint
