@@ -19,6 +19,7 @@ the run's ``checkpoints/``); without one the env's defaults apply.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 from typing import Any, Final
 
@@ -86,7 +87,11 @@ def load_model(kind: str, path: str | Path) -> Any:
         return load_rllib_policy(model_path)
     if not model_path.is_file():
         raise ValueError(f"{kind}: no model file at {model_path}")
-    return algorithm_class(kind).load(model_path, device="cpu")
+    with warnings.catch_warnings():
+        # A model trained with n-step returns reloads its NStepReplayBuffer class, which
+        # SB3 then warns would ignore n_steps; a loaded policy only predicts.
+        warnings.filterwarnings("ignore", message=".*n_steps=.* is ignored", category=UserWarning)
+        return algorithm_class(kind).load(model_path, device="cpu")
 
 
 def algorithm_class(kind: str) -> type:

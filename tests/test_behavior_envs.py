@@ -205,11 +205,13 @@ def test_trained_policy_drives_the_path_level_env_as_in_its_behavior_env(tmp_pat
                                            config={"steps_per_action": 5}))
 
 
-def test_committed_policy_drives_a_held_out_seed_cleanly_and_changes_lanes():
-    """The committed DQN policy (evaluate.py's default) on a seed it never saw: no
-    incident, lap pace near the limit, and lane changes (it is not a keep-lane policy)."""
+@pytest.mark.parametrize("spec", ["dqn:agents/highway/policies/dqn_highway.zip",
+                                  "dqn_nstep_highway"])
+def test_committed_policy_drives_a_held_out_seed_cleanly_and_changes_lanes(spec):
+    """The committed DQN policies (by file, and by name) on a seed they never saw: no
+    incident, lap pace near the limit, and lane changes (not keep-lane policies)."""
     env = gym.make("sdc_gym/HighwayLoop-v0", config={"max_duration": 120.0})
-    agent = make_agent("dqn:agents/highway/policies/dqn_highway.zip", env)
+    agent = make_agent(spec, env)
     observation, _ = env.reset(seed=1003)
     agent.reset()
     done = False
