@@ -23,7 +23,7 @@ import gymnasium as gym
 import numpy as np
 
 import sdc_gym  # noqa: F401
-from sdc_agents.policy_agent import load_model, training_config
+from sdc_agents.policy_agent import SB3_KINDS, load_model, training_config
 from sdc_evaluation.statistics import mean_interval
 from sdc_gym.envs.batch_vector import env_info
 
@@ -64,7 +64,7 @@ def validate(model_path: Path, algo: str, seed: int, episodes: int,
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("models", nargs="+", type=Path)
-    parser.add_argument("--algo", required=True, choices=("dqn", "ppo", "a2c", "sac"))
+    parser.add_argument("--algo", required=True, choices=SB3_KINDS)
     parser.add_argument("--seeds", type=int, default=2000, help="the first validation seed")
     parser.add_argument("--episodes", type=int, default=20)
     parser.add_argument("--max-duration", type=float, default=600.0)
