@@ -6,11 +6,12 @@
 
 ``HighwayLoopBehavior-v0`` batches (``gym.make_vec(..., vectorization_mode=
 "vector_entry_point")``, random discrete actions, the default config) at each E, one with
-``highway.kernel_threads = 1`` and one with 2, all made and warmed up first (the parallel
-twins compile then), then timed in rounds: each round steps every (E, threads) batch for
-``--env-steps`` env steps and highway-env's ``highway-fast-v0`` (the peer, one env,
-``bench_behavior.env_steps_per_second``) for ``--peer-steps``, in that order, so that all
-see the same load. Prints per row min/median/max env steps/s over the rounds, the median
+``highway.kernel_threads = 1`` and one with 2, made and warmed up (the parallel twins
+compile at the first such step), then timed in rounds: each round steps the two batches
+for ``--env-steps`` env steps each and highway-env's ``highway-fast-v0`` (the peer, one
+env, ``bench_behavior.env_steps_per_second``) for ``--peer-steps``, in that order, so
+that the three see the same load. One E at a time (two batches of 1024 behavior envs
+hold ~3 GB). Prints per row min/median/max env steps/s over the rounds, the median
 ratio 2 threads / 1 thread and each median / the peer's median, with the load average at
 the start of each round and the threading layer numba ran (workqueue unless
 ``NUMBA_THREADING_LAYER`` says otherwise: :mod:`sdc_gym.kernel_threads`).
@@ -80,15 +81,22 @@ def main() -> None:
     warnings.filterwarnings("ignore")
     print(f"numba {numba.__version__}, NUMBA_NUM_THREADS {numba.config.NUMBA_NUM_THREADS}, "
           f"OMP_WAIT_POLICY {os.environ.get('OMP_WAIT_POLICY', '(unset)')}, load {load()}")
-    batches = {(envs, threads): make(envs, threads) for envs in args.envs
-               for threads in THREADS}
-    print(f"threading layer: {numba.threading_layer()}; made and warmed up, load {load()}")
-    rates: dict[object, list[float]] = {key: [] for key in [*batches, PEER]}
-    for round_ in range(args.rounds):
-        print(f"round {round_ + 1}/{args.rounds}, load {load()}", flush=True)
-        for key, (vector, rng) in batches.items():
-            rates[key].append(steps_per_second(vector, rng, args.env_steps))
-        rates[PEER].append(env_steps_per_second(PEER, args.peer_steps, seed=round_))
+    rates: dict[object, list[float]] = {PEER: []}
+    for envs in args.envs:
+        batches = {(envs, threads): make(envs, threads) for threads in THREADS}
+        print(f"E = {envs}: made and warmed up (threading layer "
+              f"{numba.threading_layer()}), load {load()}", flush=True)
+        for key in batches:
+            rates[key] = []
+        for round_ in range(args.rounds):
+            for key, (vector, rng) in batches.items():
+                rates[key].append(steps_per_second(vector, rng, args.env_steps))
+            rates[PEER].append(env_steps_per_second(PEER, args.peer_steps, seed=round_))
+            print(f"  round {round_ + 1}/{args.rounds}: "
+                  + ", ".join(f"{k[1]} thread(s) {rates[k][-1]:,.0f}" for k in batches)
+                  + f", {PEER} {rates[PEER][-1]:,.1f}; load {load()}", flush=True)
+        for vector, _ in batches.values():
+            vector.close()
     peer = statistics.median(rates[PEER])
     print(f"\nload at the end {load()}; env steps/s, min / median / max of {args.rounds} "
           "rounds\n")
@@ -100,9 +108,8 @@ def main() -> None:
         m1, m2 = statistics.median(one), statistics.median(two)
         print(f"| {envs} | {cells(one)} | {cells(two)} | {m2 / m1:.2f}x | {m1 / peer:,.0f}x "
               f"| {m2 / peer:,.0f}x |")
-    print(f"\n{PEER} (one env, the peer): {cells(rates[PEER])} env steps/s")
-    for vector, _ in batches.values():
-        vector.close()
+    print(f"\n{PEER} (one env, the peer, every round of every E): {cells(rates[PEER])} "
+          "env steps/s")
 
 
 if __name__ == "__main__":
