@@ -5,16 +5,18 @@
     NUMBA_THREADING_LAYER=omp OMP_WAIT_POLICY=passive python benchmarks/bench_kernel_threads.py
 
 ``HighwayLoopBehavior-v0`` batches (``gym.make_vec(..., vectorization_mode=
-"vector_entry_point")``, random discrete actions, the default config) at each E, one with
-``highway.kernel_threads = 1`` and one with 2, made and warmed up (the parallel twins
-compile at the first such step), then timed in rounds: each round steps the two batches
-for ``--env-steps`` env steps each and highway-env's ``highway-fast-v0`` (the peer, one
-env, ``bench_behavior.env_steps_per_second``) for ``--peer-steps``, in that order, so
-that the three see the same load. One E at a time (two batches of 1024 behavior envs
-hold ~3 GB). Prints per row min/median/max env steps/s over the rounds, the median
-ratio 2 threads / 1 thread and each median / the peer's median, with the load average at
-the start of each round and the threading layer numba ran (workqueue unless
-``NUMBA_THREADING_LAYER`` says otherwise: :mod:`sdc_gym.kernel_threads`).
+"vector_entry_point")``, random discrete actions, the default config), one per E (a batch
+of 1024 behavior envs holds ~6 GB: each env's perception keeps its own road tables), made
+with ``highway.kernel_threads = 2`` and warmed up (the parallel twins compile at the
+first step), then timed in rounds: each round steps the batch for ``--env-steps`` env
+steps with its kernels on 1 thread and as many on 2 (``KernelThreads.set``: the same
+bits either way, so both continue the same episodes) and highway-env's
+``highway-fast-v0`` (the peer, one env, ``bench_behavior.env_steps_per_second``) for
+``--peer-steps``, in that order, so that the three see the same load. Prints per row
+min/median/max env steps/s over the rounds, the median ratio 2 threads / 1 thread and
+each median / the peer's median (all rounds of every E), with the load average at each
+round and the threading layer numba ran (workqueue unless ``NUMBA_THREADING_LAYER`` says
+otherwise: :mod:`sdc_gym.kernel_threads`).
 """
 
 from __future__ import annotations
@@ -47,8 +49,10 @@ def make(envs: int, threads: int,
                           config={"highway": {"kernel_threads": threads}})
     vector.reset(seed=seed)
     rng = np.random.default_rng(seed)
-    for _ in range(3):  # warm-up: the kernels load (or the parallel twins compile)
-        vector.step(rng.integers(9, size=envs))
+    for warm in (threads, 1):  # warm-up: the parallel twins compile, the kernels load
+        vector.unwrapped.batch.world.kernel_threads.set(warm)
+        for _ in range(3):
+            vector.step(rng.integers(9, size=envs))
     return vector, rng
 
 
@@ -83,20 +87,22 @@ def main() -> None:
           f"OMP_WAIT_POLICY {os.environ.get('OMP_WAIT_POLICY', '(unset)')}, load {load()}")
     rates: dict[object, list[float]] = {PEER: []}
     for envs in args.envs:
-        batches = {(envs, threads): make(envs, threads) for threads in THREADS}
+        vector, rng = make(envs, max(THREADS))
+        threads_of = vector.unwrapped.batch.world.kernel_threads  # shared by every layer
         print(f"E = {envs}: made and warmed up (threading layer "
               f"{numba.threading_layer()}), load {load()}", flush=True)
-        for key in batches:
-            rates[key] = []
+        for threads in THREADS:
+            rates[(envs, threads)] = []
         for round_ in range(args.rounds):
-            for key, (vector, rng) in batches.items():
-                rates[key].append(steps_per_second(vector, rng, args.env_steps))
+            for threads in THREADS:
+                threads_of.set(threads)
+                rates[(envs, threads)].append(steps_per_second(vector, rng, args.env_steps))
             rates[PEER].append(env_steps_per_second(PEER, args.peer_steps, seed=round_))
             print(f"  round {round_ + 1}/{args.rounds}: "
-                  + ", ".join(f"{k[1]} thread(s) {rates[k][-1]:,.0f}" for k in batches)
+                  + ", ".join(f"{t} thread(s) {rates[(envs, t)][-1]:,.0f}" for t in THREADS)
                   + f", {PEER} {rates[PEER][-1]:,.1f}; load {load()}", flush=True)
-        for vector, _ in batches.values():
-            vector.close()
+        vector.close()
+        del vector
     peer = statistics.median(rates[PEER])
     print(f"\nload at the end {load()}; env steps/s, min / median / max of {args.rounds} "
           "rounds\n")

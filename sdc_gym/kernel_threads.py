@@ -95,13 +95,19 @@ def _choose_layer() -> None:
 class KernelThreads:
     """Which variant of a batched kernel to call: :meth:`pick` gives the kernel itself for
     one thread, else its :func:`parallel_twin` run on ``threads`` threads (numba's
-    thread count set for the call and put back after it)."""
+    thread count set for the call and put back after it). One object is shared by the
+    layers of a batch (traffic, motion), so :meth:`set` changes them all at once."""
 
     __slots__ = ("_picked", "threads")
 
     def __init__(self, threads: int = 1) -> None:
-        self.threads = int(threads)
+        self.threads = check_kernel_threads(threads, "KernelThreads", "threads")
         self._picked: dict[Dispatcher, Callable[..., Any]] = {}
+
+    def set(self, threads: int) -> None:
+        """Run the next calls on ``threads`` threads (the same bits on any number: e.g.
+        a benchmark comparing thread counts on one batch)."""
+        self.threads = check_kernel_threads(threads, "KernelThreads", "threads")
 
     def pick(self, kernel: Dispatcher) -> Callable[..., Any]:
         """``kernel`` or, with more than one thread, its parallel twin on them."""
@@ -114,11 +120,10 @@ class KernelThreads:
 
     def _threaded(self, twin: Dispatcher) -> Callable[..., Any]:
         _choose_layer()
-        threads = self.threads
 
         def call(*args: Any) -> Any:
             previous = numba.get_num_threads()
-            numba.set_num_threads(threads)
+            numba.set_num_threads(self.threads)
             try:
                 return twin(*args)
             finally:
