@@ -39,6 +39,7 @@ from typing import Any
 import numba
 from numba.core.dispatcher import Dispatcher
 
+import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.validation.rules import Number, check_value
 
 PARALLEL_SUFFIX = "__parallel"
