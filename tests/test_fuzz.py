@@ -26,6 +26,7 @@ from hypothesis import strategies as st
 import sdc_gym  # noqa: F401
 from sdc_gym.config import ConfigError
 from sdc_gym.envs import HighwayLoopBehaviorEnv, HighwayLoopEnv, TrackLoopBehaviorEnv, TrackLoopEnv
+from sdc_gym.kernel_threads import max_kernel_threads
 
 EXAMPLES = int(os.environ.get("SDC_GYM_FUZZ_EXAMPLES", "0")) or None
 FUZZ = settings(max_examples=EXAMPLES or 60, deadline=timedelta(seconds=30), database=None,
@@ -90,6 +91,14 @@ def compiled_kernels() -> None:
         envs = gym.make_vec(env_id, num_envs=2, vectorization_mode="vector_entry_point",
                             config=config)
         envs.reset(seed=0)
+        envs.close()
+    if max_kernel_threads() >= 2:  # a generated kernel_threads = 2: the parallel twins too
+        threaded = {"highway": {**BASE["sdc_gym/HighwayLoopBehavior-v0"]["highway"],
+                                "kernel_threads": 2}}
+        envs = gym.make_vec("sdc_gym/HighwayLoopBehavior-v0", num_envs=2,
+                            vectorization_mode="vector_entry_point", config=threaded)
+        envs.reset(seed=0)
+        envs.step(np.zeros(2, dtype=np.int64))
         envs.close()
 
 

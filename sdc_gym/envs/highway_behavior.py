@@ -104,7 +104,10 @@ class HighwayLoopBehaviorEnv(gym.Env):
     ``gym.make("sdc_gym/HighwayLoopBehavior-v0", config={...}, render_mode=None)``:
 
     * ``highway``: the path-level env's config (any ``HighwayLoop-v0`` key but
-      ``steps_per_action``), e.g. ``{"traffic": {"car_count": 20}, "max_duration": 200}``.
+      ``steps_per_action``), e.g. ``{"traffic": {"car_count": 20}, "max_duration": 200}``;
+      its ``kernel_threads`` (default 1; an int in 1..``NUMBA_NUM_THREADS``) runs the
+      batch's heaviest kernels, the motion plan included, on that many threads with the
+      same bits (``HighwayLoop-v0``'s Arguments; docs/batched.md, "Two kernel threads").
     * ``decision_frames``: physics frames per decision (the path-level env's
       ``steps_per_action``).
     * ``action``: ``"discrete"`` or ``"continuous"``.

@@ -106,7 +106,8 @@ class HighwayBehaviorWorld:
         self.perception_params = PerceptionParameters(tracking=bool(cfg["kalman_tracking"]))
         self.motion_params = MotionParameters.for_env(self.world)
         self.perception = [Perception(road, self.perception_params) for _ in range(envs)]
-        self.motion_batch = MotionBatch(road, self.motion_params, envs)
+        self.motion_batch = MotionBatch(road, self.motion_params, envs,
+                                        kernel_threads=self.world.kernel_threads)
         self.motion = [SeedMotionPlanner.view(self.motion_batch, env) for env in range(envs)]
         self.executors = ExecutorBatch(self.shield, envs,
                                        slow_step_mps=float(cfg["slow_step_mps"]))

@@ -185,6 +185,15 @@ class HighwayLoopEnv(TopDownRenderEnv):
     raise ``ConfigError`` listing the valid ones. See :attr:`DEFAULT_CONFIG` for every key
     with its unit.
 
+    * ``kernel_threads`` (default 1): threads of the heaviest batched kernels (the
+      traffic's segments, poses and decisions, the heading's ``atan2``; and the behavior
+      env's motion plan): an int in 1..``NUMBA_NUM_THREADS``, anything else a
+      ``ConfigError`` naming the valid range. Above 1 each of them runs its
+      ``prange`` over the envs of a batch on that many threads (workqueue layer unless
+      ``NUMBA_THREADING_LAYER`` chooses; compiled at the first such step); the bits are
+      the same as on one thread. It pays only with a core to spare (docs/batched.md, "Two
+      kernel threads"); for a batch of one it is pointless.
+
     ## Vectorized
 
     ``gym.make_vec("sdc_gym/HighwayLoop-v0", num_envs=E,

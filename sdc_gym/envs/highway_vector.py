@@ -69,7 +69,13 @@ class HighwayLoopBehaviorVectorEnv(BatchVectorEnv):
         return reward, terminated.copy(), truncated.copy(), list(incidents)
 
     def _env_info(self, env: int, incidents: Any, final: bool, action: Any) -> dict[str, Any]:
-        return self.batch.info(env, incidents, final=final, action=action)
+        info = self.batch.info(env, incidents, final=final, action=action)
+        if info.get("summary") is None:
+            # Only at an episode's end, as the path-level batch's: a None for one env and
+            # a dict for another under one key is more than the vector info's arrays hold
+            # (Gymnasium's _add_info failed at the first end of an env after the first).
+            info.pop("summary", None)
+        return info
 
     def _summary(self, env: int) -> dict[str, Any]:
         return self.batch.world.summary(env)

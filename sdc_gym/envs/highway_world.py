@@ -39,6 +39,7 @@ from sdc_gym.envs.top_down_env import RENDER_CONFIG_DEFAULTS
 from sdc_gym.geometry.collision import first_contacts
 from sdc_gym.geometry.exact_math import py_hypot
 from sdc_gym.geometry.original_frenet import FRENET_CONVENTIONS
+from sdc_gym.kernel_threads import KernelThreads
 from sdc_gym.metrics import INCIDENT_KINDS, Incident, IncidentRules
 from sdc_gym.metrics.batch import DrivingMetricsBatch
 from sdc_gym.road.builtin_highways import get_highway_map
@@ -112,6 +113,7 @@ HIGHWAY_DEFAULTS: dict[str, Any] = {
     "stop_at_incident": None,    # end the episode at the first incident: True (any kind),
                                  # or a list of kinds; None / False: drive on
     "road_events": _dataclass_defaults(RoadEventRates),  # object slots, random event rates
+    "kernel_threads": 1,         # threads of the heaviest batched kernels (1..NUMBA_NUM_THREADS)
     **RENDER_CONFIG_DEFAULTS,      # render_width, render_height (px), zoom
 }
 """``HighwayLoop-v0``'s config keys with their defaults (units in the comments)."""
@@ -231,8 +233,11 @@ class HighwayWorld:
                           path_points=self.path_points, cars=self.car_count,
                           frames_key=frames_key, cars_key="traffic.car_count")
         self.episodes = EpisodeSettings(cfg, owner, self.road, self.car_count, envs, _to_tuple)
+        # The heaviest kernels' threads (sdc_gym.kernel_threads: the same bits on any).
+        self.kernel_threads = KernelThreads(cfg["kernel_threads"])
         self.traffic = TrafficBatch(self.road, self.traffic_config, envs=envs, dt=PHYSICS_DT,
-                                    object_slots=self.episodes.object_slots)
+                                    object_slots=self.episodes.object_slots,
+                                    kernel_threads=self.kernel_threads)
         capacity = reset_capacity(self.traffic)
         # A config's scenario places its own cars (checked against the road and each
         # other); the bound is for the cars placed at random around the ego.

@@ -32,11 +32,12 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import ArrayLike, NDArray
 
 from sdc_gym.geometry.fixed_order import fma
 from sdc_gym.kernel_compiler import kernel
+from sdc_gym.kernel_threads import SERIAL, KernelThreads
 
 FloatArray = NDArray[np.float64]
 
@@ -116,7 +117,7 @@ def _hypot_loop(x: np.ndarray, y: np.ndarray, out: np.ndarray) -> None:
 
 @njit(cache=True)
 def _atan2_loop(y: np.ndarray, x: np.ndarray, out: np.ndarray) -> None:
-    for i in range(x.size):
+    for i in prange(x.size):  # elements apart: a thread each in the parallel twin
         out[i] = math.atan2(y[i], x[i])
 
 
@@ -194,11 +195,11 @@ def hypot(x: ArrayLike, y: ArrayLike) -> FloatArray:
     return out.reshape(shape)
 
 
-def atan2(y: ArrayLike, x: ArrayLike) -> FloatArray:
-    """``math.atan2`` elementwise."""
+def atan2(y: ArrayLike, x: ArrayLike, threads: KernelThreads = SERIAL) -> FloatArray:
+    """``math.atan2`` elementwise (on ``threads``' threads: the same values)."""
     a, b, shape = _flat_pair(y, x)
     out = np.empty(a.size)
-    _atan2_loop(a, b, out)
+    threads.pick(_atan2_loop)(a, b, out)
     return out.reshape(shape)
 
 

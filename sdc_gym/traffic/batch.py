@@ -29,6 +29,7 @@ from numpy.typing import ArrayLike, NDArray
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.generator_kernel import generator_pointers
 from sdc_gym.geometry.exact_math import py_mod
+from sdc_gym.kernel_threads import SERIAL, KernelThreads
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic import decisions, placement
 from sdc_gym.traffic import scripted as scripting
@@ -118,10 +119,13 @@ class TrafficBatch:
         envs: number of envs.
         dt: s, the physics step.
         object_slots: columns for road objects after the ``car_count`` cars.
+        kernel_threads: the threads of the heaviest kernels (segments, poses,
+            decisions; :mod:`sdc_gym.kernel_threads`), one by default.
     """
 
     def __init__(self, road: HighwayMap, config: TrafficConfig | None = None, envs: int = 1,
-                 dt: float = 0.02, object_slots: int = 0) -> None:
+                 dt: float = 0.02, object_slots: int = 0,
+                 kernel_threads: KernelThreads = SERIAL) -> None:
         if envs < 1:
             raise ValueError(f"envs must be >= 1, got {envs}")
         self.road = road
@@ -129,7 +133,8 @@ class TrafficBatch:
         self.dt = float(dt)
         self.envs = envs
         self.reference = road.reference
-        self.geometry = TrafficGeometry(road, config, self.dt)
+        self.kernel_threads = kernel_threads
+        self.geometry = TrafficGeometry(road, config, self.dt, kernel_threads)
         self.loop = float(road.length)
         # An open road's end: its cars spawn on [0, end] and leave past it (a loop: inf).
         self.road_end = math.inf if road.closed else float(road.end_s)

@@ -29,7 +29,7 @@ import math
 from typing import Any
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
@@ -212,11 +212,15 @@ def _stopping_gap(v_back: float, v_front: float, delay: float, max_braking: floa
 @njit(cache=True)
 def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndarray,
                      rows: np.ndarray, constants: np.ndarray, kappa_grid: np.ndarray,
-                     kappa_table: np.ndarray, free: np.ndarray, rngs: np.ndarray) -> None:
+                     kappa_table: np.ndarray, free: np.ndarray, rngs: np.ndarray,
+                     parts: int) -> None:
     """Steps 3-6 for the envs with ``rows``: ``free`` is ``(envs, objects)`` the IDM
     free-road power ``(v / v0) ** delta``; ``rngs`` each env's generator (its
     :func:`~sdc_gym.generator_kernel.generator_pointers`), which the rogue events draw
-    from (``Generator.random((2 + lanes, cars))``), when rogue mode is on."""
+    from (``Generator.random((2 + lanes, cars))``), when rogue mode is on. ``parts``:
+    the envs in that many contiguous blocks, each with its own scratch arrays (1 for the
+    serial kernel; the kernel threads for its parallel twin,
+    :mod:`sdc_gym.kernel_threads`); an env's arithmetic is the same in any block."""
     envs, cars = cf.shape[1], cf.shape[2]
     objects = cars + 1
     lanes = int(constants[C_LANES])
@@ -231,141 +235,145 @@ def finish_decisions(cf: np.ndarray, ci: np.ndarray, ei: np.ndarray, ef: np.ndar
     min_speed = constants[C_MIN_SPEED]
     sustain = int(constants[C_SUSTAIN])
     rogue_p = constants[C_ROGUE_P]
-    rel = np.empty(objects)
-    occupies = np.zeros((lanes, objects), dtype=np.bool_)
-    order = np.empty(objects, dtype=np.int64)
-    position = np.empty(objects + 4, dtype=np.int64)
-    first_from = np.empty((lanes, objects + 1), dtype=np.int64)
-    last_upto = np.empty((lanes, objects + 1), dtype=np.int64)
-    ahead = np.empty((lanes, cars), dtype=np.int64)
-    behind = np.empty((lanes, cars), dtype=np.int64)
-    ds_ahead = np.empty((lanes, cars))
-    ds_behind = np.empty((lanes, cars))
-    lead_gap = np.empty((lanes, cars))
-    follow_gap = np.empty((lanes, cars))
-    lead_v = np.empty((lanes, cars))
-    acc_lane = np.empty((lanes, cars))
-    imposed = np.empty((lanes, cars))
-    scale = np.empty(objects)
-    half_all = np.empty(objects)
-    v_all = np.empty(objects)
-    vt = np.empty(objects)
-    afree = np.empty(objects)
-    a_all = np.empty(objects)
-    tsab = np.empty(objects)
-    acc = np.empty(cars)
-    want = np.empty(cars, dtype=np.int64)
-    start = np.empty(cars, dtype=np.bool_)
-    first = np.empty(lanes + 1, dtype=np.int64)
-    u = np.empty((2 + lanes, cars))
-    for e in range(envs):
-        if not rows[e]:
-            continue
-        now = ei[STEP, e]
-        farthest = _relative(cf, ef, e, loop, half, rel)
-        # The objects: the cars, then the ego (every lane its footprint touches).
-        ego_d = ef[EGO_D, e]
-        low = math.floor((ego_d - ego_half_width) / lane_width)
-        high = math.floor((ego_d + ego_half_width) / lane_width)
-        for lane in range(lanes):
-            for c in range(cars):
-                occupies[lane, c] = (ci[ORIGIN, e, c] == lane) or (ci[TARGET_LANE, e, c] == lane)
-            occupies[lane, cars] = low <= lane <= high
-        for j in range(objects):
-            if j < cars:
-                s, d, v = cf[S, e, j], cf[D, e, j], cf[SPEED, e, j]
-                half_all[j], a_all[j], tsab[j] = cf[HALF_LENGTH, e, j], cf[A_MAX, e, j], \
-                    cf[TSAB, e, j]
-            else:
-                s, d, v = ef[EGO_S, e], ego_d, ef[EGO_SPEED, e]
-                half_all[j], a_all[j], tsab[j] = constants[C_EGO_HALF_LENGTH], \
-                    constants[C_EGO_A_MAX], constants[C_EGO_TSAB]
-            kappa = interp(s, kappa_grid, kappa_table)
-            if j < cars:
-                cf[KAPPA, e, j] = kappa
-            scale[j] = kappa * d + 1.0
-            v_all[j] = v
-            vt[j] = v * constants[C_IDM_T]
-            afree[j] = (1.0 - free[e, j]) * a_all[j]
-        nearest_objects(rel, occupies, farthest >= 0.25 * loop, loop, order, position,
-                        first_from, last_upto, ahead, ds_ahead, behind, ds_behind)
-        for lane in range(lanes):
-            for c in range(cars):
-                leader, follower = ahead[lane, c], behind[lane, c]
-                own_half = half_all[c]
-                lead_gap[lane, c] = ds_ahead[lane, c] * scale[c] - (own_half + half_all[leader])
-                follow_gap[lane, c] = ds_behind[lane, c] * scale[follower] - (
-                    own_half + half_all[follower])
-                lead_v[lane, c] = v_all[leader]
-        # IDM in every lane (as if there), with the own leader (the nearest over the
-        # lanes the car occupies), and for the new follower behind it in every lane.
-        brake_any = False
-        for c in range(cars):
-            own = ci[ORIGIN, e, c]
-            own_gap = lead_gap[own, c]
-            if ci[TARGET_LANE, e, c] != own:
-                # The first lane of the smallest gap, lanes not occupied at inf (a car
-                # with no leader in its lanes reads lane 0's leader speed at gap inf).
-                own = -1
-                for lane in range(lanes):
-                    gap = lead_gap[lane, c] + (0.0 if occupies[lane, c] else math.inf)
-                    if own < 0 or gap < own_gap:
-                        own_gap, own = gap, lane
-            v = v_all[c]
-            acc[c] = _idm(v, vt[c], afree[c], a_all[c], tsab[c], lead_v[own, c], own_gap,
-                          s0, max_braking, floor)
+    # Scratch of one block of envs: a part's own, so that parts may run on threads of
+    # their own (the parallel twin's prange; the serial kernel runs one part).
+    for part in prange(parts):
+        rel = np.empty(objects)
+        occupies = np.zeros((lanes, objects), dtype=np.bool_)
+        order = np.empty(objects, dtype=np.int64)
+        position = np.empty(objects + 4, dtype=np.int64)
+        first_from = np.empty((lanes, objects + 1), dtype=np.int64)
+        last_upto = np.empty((lanes, objects + 1), dtype=np.int64)
+        ahead = np.empty((lanes, cars), dtype=np.int64)
+        behind = np.empty((lanes, cars), dtype=np.int64)
+        ds_ahead = np.empty((lanes, cars))
+        ds_behind = np.empty((lanes, cars))
+        lead_gap = np.empty((lanes, cars))
+        follow_gap = np.empty((lanes, cars))
+        lead_v = np.empty((lanes, cars))
+        acc_lane = np.empty((lanes, cars))
+        imposed = np.empty((lanes, cars))
+        scale = np.empty(objects)
+        half_all = np.empty(objects)
+        v_all = np.empty(objects)
+        vt = np.empty(objects)
+        afree = np.empty(objects)
+        a_all = np.empty(objects)
+        tsab = np.empty(objects)
+        acc = np.empty(cars)
+        want = np.empty(cars, dtype=np.int64)
+        start = np.empty(cars, dtype=np.bool_)
+        first = np.empty(lanes + 1, dtype=np.int64)
+        u = np.empty((2 + lanes, cars))
+        for e in range(part * envs // parts, (part + 1) * envs // parts):
+            if not rows[e]:
+                continue
+            now = ei[STEP, e]
+            farthest = _relative(cf, ef, e, loop, half, rel)
+            # The objects: the cars, then the ego (every lane its footprint touches).
+            ego_d = ef[EGO_D, e]
+            low = math.floor((ego_d - ego_half_width) / lane_width)
+            high = math.floor((ego_d + ego_half_width) / lane_width)
             for lane in range(lanes):
-                acc_lane[lane, c] = _idm(v, vt[c], afree[c], a_all[c], tsab[c],
-                                         lead_v[lane, c], lead_gap[lane, c], s0,
-                                         max_braking, floor)
-                f = behind[lane, c]
-                imposed[lane, c] = _idm(v_all[f], vt[f], afree[f], a_all[f], tsab[f], v,
-                                        follow_gap[lane, c], s0, max_braking, floor)
-            brake_any |= now < ci[BRAKE_UNTIL, e, c]
-        # Lane-change wishes: clear +-clearance, MOBIL incentive and safety; sustained.
-        any_start = False
-        for c in range(cars):
-            origin = ci[ORIGIN, e, c]
-            eligible = (ci[LC_END, e, c] == IDLE and cf[SPEED, e, c] >= min_speed
-                        and now >= ci[BRAKE_UNTIL, e, c])
-            pick, best = -1, -math.inf
-            if eligible:
-                for lane in range(lanes):
-                    if (abs(lane - origin) == 1 and acc_lane[lane, c] - acc[c] > min_gain
-                            and ds_ahead[lane, c] >= clearance
-                            and ds_behind[lane, c] >= clearance
-                            and acc_lane[lane, c] >= limit
-                            and (imposed[lane, c] >= limit or math.isinf(follow_gap[lane, c]))
-                            and (pick < 0 or acc_lane[lane, c] > best)):
-                        pick, best = lane, acc_lane[lane, c]
-            want[c] = pick
-            wish = pick >= 0 and pick == ci[PENDING, e, c]
-            held = (ci[HELD, e, c] + 1) * wish
-            ci[HELD, e, c] = held
-            ci[PENDING, e, c] = pick
-            start[c] = held >= sustain if sustain else pick >= 0
-            any_start |= start[c]
-        if any_start:
-            # One start per target lane per decision (the lowest slot): two cars entering
-            # a lane at once did not see each other in their checks. The others keep their
-            # sustained wish and retry at the next decision.
-            first[:] = cars
-            for c in range(cars):
-                if start[c] and first[want[c]] == cars:
-                    first[want[c]] = c
-            for c in range(cars):
-                if start[c] and first[want[c]] == c:
-                    _begin_change(ci, cf, e, c, want[c], now, int(constants[C_LC_STEPS]),
-                                  constants[C_LC_DURATION])
-        if rogue_p > 0.0:
-            for row in range(2 + lanes):
                 for c in range(cars):
-                    u[row, c] = draw.random(rngs[e])
-            _rogue(cf, ci, ei, e, now, constants, u, acc, ds_ahead, ds_behind,
-                   lead_gap, follow_gap, lead_v, v_all, behind)
-        for c in range(cars):
-            cf[ACC, e, c] = acc[c]
-            cf[HALF_ACC, e, c] = acc[c] * 0.5
+                    occupies[lane, c] = (ci[ORIGIN, e, c] == lane) or \
+                        (ci[TARGET_LANE, e, c] == lane)
+                occupies[lane, cars] = low <= lane <= high
+            for j in range(objects):
+                if j < cars:
+                    s, d, v = cf[S, e, j], cf[D, e, j], cf[SPEED, e, j]
+                    half_all[j], a_all[j], tsab[j] = cf[HALF_LENGTH, e, j], cf[A_MAX, e, j], \
+                        cf[TSAB, e, j]
+                else:
+                    s, d, v = ef[EGO_S, e], ego_d, ef[EGO_SPEED, e]
+                    half_all[j], a_all[j], tsab[j] = constants[C_EGO_HALF_LENGTH], \
+                        constants[C_EGO_A_MAX], constants[C_EGO_TSAB]
+                kappa = interp(s, kappa_grid, kappa_table)
+                if j < cars:
+                    cf[KAPPA, e, j] = kappa
+                scale[j] = kappa * d + 1.0
+                v_all[j] = v
+                vt[j] = v * constants[C_IDM_T]
+                afree[j] = (1.0 - free[e, j]) * a_all[j]
+            nearest_objects(rel, occupies, farthest >= 0.25 * loop, loop, order, position,
+                            first_from, last_upto, ahead, ds_ahead, behind, ds_behind)
+            for lane in range(lanes):
+                for c in range(cars):
+                    leader, follower = ahead[lane, c], behind[lane, c]
+                    own_half = half_all[c]
+                    lead_gap[lane, c] = ds_ahead[lane, c] * scale[c] - (own_half + half_all[leader])
+                    follow_gap[lane, c] = ds_behind[lane, c] * scale[follower] - (
+                        own_half + half_all[follower])
+                    lead_v[lane, c] = v_all[leader]
+            # IDM in every lane (as if there), with the own leader (the nearest over the
+            # lanes the car occupies), and for the new follower behind it in every lane.
+            brake_any = False
+            for c in range(cars):
+                own = ci[ORIGIN, e, c]
+                own_gap = lead_gap[own, c]
+                if ci[TARGET_LANE, e, c] != own:
+                    # The first lane of the smallest gap, lanes not occupied at inf (a car
+                    # with no leader in its lanes reads lane 0's leader speed at gap inf).
+                    own = -1
+                    for lane in range(lanes):
+                        gap = lead_gap[lane, c] + (0.0 if occupies[lane, c] else math.inf)
+                        if own < 0 or gap < own_gap:
+                            own_gap, own = gap, lane
+                v = v_all[c]
+                acc[c] = _idm(v, vt[c], afree[c], a_all[c], tsab[c], lead_v[own, c], own_gap,
+                              s0, max_braking, floor)
+                for lane in range(lanes):
+                    acc_lane[lane, c] = _idm(v, vt[c], afree[c], a_all[c], tsab[c],
+                                             lead_v[lane, c], lead_gap[lane, c], s0,
+                                             max_braking, floor)
+                    f = behind[lane, c]
+                    imposed[lane, c] = _idm(v_all[f], vt[f], afree[f], a_all[f], tsab[f], v,
+                                            follow_gap[lane, c], s0, max_braking, floor)
+                brake_any |= now < ci[BRAKE_UNTIL, e, c]
+            # Lane-change wishes: clear +-clearance, MOBIL incentive and safety; sustained.
+            any_start = False
+            for c in range(cars):
+                origin = ci[ORIGIN, e, c]
+                eligible = (ci[LC_END, e, c] == IDLE and cf[SPEED, e, c] >= min_speed
+                            and now >= ci[BRAKE_UNTIL, e, c])
+                pick, best = -1, -math.inf
+                if eligible:
+                    for lane in range(lanes):
+                        if (abs(lane - origin) == 1 and acc_lane[lane, c] - acc[c] > min_gain
+                                and ds_ahead[lane, c] >= clearance
+                                and ds_behind[lane, c] >= clearance
+                                and acc_lane[lane, c] >= limit
+                                and (imposed[lane, c] >= limit or math.isinf(follow_gap[lane, c]))
+                                and (pick < 0 or acc_lane[lane, c] > best)):
+                            pick, best = lane, acc_lane[lane, c]
+                want[c] = pick
+                wish = pick >= 0 and pick == ci[PENDING, e, c]
+                held = (ci[HELD, e, c] + 1) * wish
+                ci[HELD, e, c] = held
+                ci[PENDING, e, c] = pick
+                start[c] = held >= sustain if sustain else pick >= 0
+                any_start |= start[c]
+            if any_start:
+                # One start per target lane per decision (the lowest slot): two cars entering
+                # a lane at once did not see each other in their checks. The others keep their
+                # sustained wish and retry at the next decision.
+                first[:] = cars
+                for c in range(cars):
+                    if start[c] and first[want[c]] == cars:
+                        first[want[c]] = c
+                for c in range(cars):
+                    if start[c] and first[want[c]] == c:
+                        _begin_change(ci, cf, e, c, want[c], now, int(constants[C_LC_STEPS]),
+                                      constants[C_LC_DURATION])
+            if rogue_p > 0.0:
+                for row in range(2 + lanes):
+                    for c in range(cars):
+                        u[row, c] = draw.random(rngs[e])
+                _rogue(cf, ci, ei, e, now, constants, u, acc, ds_ahead, ds_behind,
+                       lead_gap, follow_gap, lead_v, v_all, behind)
+            for c in range(cars):
+                cf[ACC, e, c] = acc[c]
+                cf[HALF_ACC, e, c] = acc[c] * 0.5
 
 
 @njit(cache=True)
@@ -438,6 +446,7 @@ def decide(batch: TrafficBatch, rows: NDArray[np.bool_], end: IntArray, step0: I
                      batch.geometry.kappa_table, batch.type_cdf, batch.respawn_draws,
                      batch.lanes, candidates, batch.rng_pointers, ratio)
     free = ratio ** batch.config.idm.delta
-    finish_decisions(cf, ci, ei, ef, rows, batch.decision_constants,
-                     batch.geometry.kappa_grid, batch.geometry.kappa_table, free,
-                     batch.rng_pointers)
+    threads = batch.kernel_threads
+    threads.pick(finish_decisions)(cf, ci, ei, ef, rows, batch.decision_constants,
+                                   batch.geometry.kappa_grid, batch.geometry.kappa_table,
+                                   free, batch.rng_pointers, threads.threads)

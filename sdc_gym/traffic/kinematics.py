@@ -23,12 +23,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 from numpy.typing import NDArray
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.geometry import exact_math
 from sdc_gym.geometry.exact_math import py_mod
+from sdc_gym.kernel_threads import SERIAL, KernelThreads
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.traffic.config import TrafficConfig, TrafficSamples
 from sdc_gym.traffic.state import TrafficState
@@ -136,7 +137,7 @@ def segments(cf: np.ndarray, ci: np.ndarray, rows: np.ndarray, begin: np.ndarray
     and d_dot into the ``(envs, frames, cars)`` outputs. ``keep_end``: the segment's end
     becomes the env's state (s wrapped, speed, d)."""
     envs, cars = cf.shape[1], cf.shape[2]
-    for e in range(envs):
+    for e in prange(envs):  # envs apart: a thread each in the parallel twin
         if not rows[e] or end[e] <= begin[e]:
             continue
         b = begin[e]
@@ -195,7 +196,7 @@ def poses(table: np.ndarray, loop: float, grid_scale: float, grid_count: int,
     """World poses of Frenet states (flat arrays): wrapped s, x, y, the velocity, and the
     direction whose angle is the heading (for a car below 1 m/s its lane's tangent
     direction, so a (near) stopped car keeps pointing along its lane)."""
-    for n in range(s.shape[0]):
+    for n in prange(s.shape[0]):  # points apart: a thread each in the parallel twin
         sw = py_mod(s[n], loop)
         u = sw * grid_scale
         cell = math.floor(u)
@@ -223,8 +224,10 @@ def poses(table: np.ndarray, loop: float, grid_scale: float, grid_count: int,
 class TrafficGeometry:
     """Road tables for the traffic (see the module docstring)."""
 
-    def __init__(self, road: HighwayMap, config: TrafficConfig, dt: float) -> None:
+    def __init__(self, road: HighwayMap, config: TrafficConfig, dt: float,
+                 kernel_threads: KernelThreads = SERIAL) -> None:
         self.config = config
+        self.kernel_threads = kernel_threads
         self.dt = float(dt)
         self.reference = road.reference
         self.loop = float(road.length)
@@ -264,18 +267,20 @@ class TrafficGeometry:
                  end: IntArray, step0: IntArray, out: tuple[FloatArray, ...], *,
                  keep_end: bool) -> None:
         """:func:`segments` of ``state`` into the window arrays ``out`` (s, d, v, d_dot)."""
-        segments(state.car_floats, state.car_ints, rows, begin, end, step0, self.dt,
-                 self.lane_width, self.config.lateral_wander, self.loop, *out, keep_end)
+        self.kernel_threads.pick(segments)(
+            state.car_floats, state.car_ints, rows, begin, end, step0, self.dt,
+            self.lane_width, self.config.lateral_wander, self.loop, *out, keep_end)
 
     def pose(self, s: FloatArray, d: FloatArray, v: FloatArray,
              d_dot: FloatArray) -> TrafficSamples:
         """World pose of Frenet states (C-contiguous arrays of any one shape)."""
         shape = s.shape
         outputs = np.empty((7, *shape))
-        poses(self.table, self.loop, self.grid_scale, self.grid_count, self.clamp_cell,
-              s.reshape(-1), d.reshape(-1), v.reshape(-1), d_dot.reshape(-1),
-              *(row.reshape(-1) for row in outputs))
-        heading = exact_math.atan2(outputs[6], outputs[5])
+        threads = self.kernel_threads
+        threads.pick(poses)(self.table, self.loop, self.grid_scale, self.grid_count,
+                            self.clamp_cell, s.reshape(-1), d.reshape(-1), v.reshape(-1),
+                            d_dot.reshape(-1), *(row.reshape(-1) for row in outputs))
+        heading = exact_math.atan2(outputs[6], outputs[5], threads)
         return TrafficSamples._make(outputs[0], d, v, outputs[1], outputs[2], heading,
                                     outputs[3], outputs[4])
 

@@ -15,6 +15,7 @@ from collections.abc import Mapping
 from typing import Any, Final
 
 from sdc_gym.config import ConfigError
+from sdc_gym.kernel_threads import check_kernel_threads
 from sdc_gym.metrics import INCIDENT_KINDS
 from sdc_gym.validation.bounds import (
     MAX_CAR_COUNT,
@@ -192,6 +193,7 @@ def step_frames_rule(max_duration: Any, key: str = "steps_per_action") -> Number
 def check_highway_config(config: Mapping[str, Any], owner: str) -> None:
     """The highway env's rules (table, step bound, latency), before anything is built."""
     check_rules(HIGHWAY_RULES, config, owner)
+    check_kernel_threads(config["kernel_threads"], owner)
     check_road_event_slots(config, owner)
     frames = step_frames_rule(config["max_duration"])
     check_value(frames, config["steps_per_action"], owner, "steps_per_action")

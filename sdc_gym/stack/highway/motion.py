@@ -82,6 +82,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.kernel_threads import SERIAL, KernelThreads
 from sdc_gym.road.highway_map import HighwayMap
 from sdc_gym.stack.highway.behavior import STEP, BehaviorDecision
 from sdc_gym.stack.highway.motion_kernel import line_frame, plan_batch
@@ -165,11 +166,13 @@ class MotionState:
 class MotionBatch:
     """The motion layer of ``envs`` planners, their states as arrays (see the module
     docstring); :func:`~sdc_gym.stack.highway.motion_kernel.plan_batch` plans every env
-    of a cycle in one compiled call."""
+    of a cycle in one compiled call (on ``kernel_threads``' threads:
+    :mod:`sdc_gym.kernel_threads`)."""
 
     def __init__(self, road: HighwayMap, params: MotionParameters | None = None,
-                 envs: int = 1) -> None:
+                 envs: int = 1, kernel_threads: KernelThreads = SERIAL) -> None:
         self.road = road
+        self.kernel_threads = kernel_threads
         self.reference = road.reference
         self.params = p = params or MotionParameters()
         self.envs = envs
@@ -227,16 +230,16 @@ class MotionBatch:
         points)."""
         if target_d is None:
             target_d = self._lane_centres
-        plan_batch(self._kernel_params, self._coef, self._line, self.buffer, self.start,
-                   self.stop, self.end_row, self.has_end, self.last_row, self.has_last,
-                   self.counters, self.floats, self.flags,
-                   np.ascontiguousarray(ego, dtype=np.float64),
-                   np.asarray(target_lane, dtype=np.int64),
-                   np.asarray(target_speed, dtype=np.float64),
-                   np.asarray(acceleration, dtype=np.float64), np.asarray(replan, dtype=bool),
-                   np.asarray(steering, dtype=bool), self._all if active is None else active,
-                   np.asarray(target_d, dtype=np.float64), self.paths, self.lengths, 2.0,
-                   3.0)
+        self.kernel_threads.pick(plan_batch)(
+            self._kernel_params, self._coef, self._line, self.buffer, self.start,
+            self.stop, self.end_row, self.has_end, self.last_row, self.has_last,
+            self.counters, self.floats, self.flags,
+            np.ascontiguousarray(ego, dtype=np.float64),
+            np.asarray(target_lane, dtype=np.int64),
+            np.asarray(target_speed, dtype=np.float64),
+            np.asarray(acceleration, dtype=np.float64), np.asarray(replan, dtype=bool),
+            np.asarray(steering, dtype=bool), self._all if active is None else active,
+            np.asarray(target_d, dtype=np.float64), self.paths, self.lengths, 2.0, 3.0)
         return self.paths, self.lengths
 
     def end_of(self, env: int) -> NDArray[np.float64]:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 import sdc_gym.kernel_compiler  # noqa: F401  (the package's cache locator, before any njit)
 from sdc_gym.geometry.exact_math import py_mod
@@ -77,7 +77,7 @@ def plan_batch(params: np.ndarray, coef: np.ndarray, line: np.ndarray,
     lanes = int(params[16])
     lane_width = params[17]
     capacity = buffer.shape[1]
-    for e in range(buffer.shape[0]):
+    for e in prange(buffer.shape[0]):  # envs apart: a thread each in the parallel twin
         if not active[e]:
             continue
         # ---- locate the car: drop the queued points it consumed
