@@ -91,11 +91,11 @@ def test_an_sb3_vec_env_is_bounded_by_the_same_products():
     ("external:./path_planning", TRACK,
      "agent 'external:./path_planning' is an external planner (the original highway's path "
      "protocol): it drives sdc_gym/HighwayLoop-v0, not sdc_gym/TrackLoop-v0; the kinds for "
-     "sdc_gym/TrackLoop-v0: a2c:, capstone:, dqn:, ppo:, rllib:, sac:"),
+     "sdc_gym/TrackLoop-v0: a2c:, capstone:, dqn:, ppo:, qrdqn:, rllib:, sac:"),
     ("capstone:roslaunch launch/styx.launch", HIGHWAY,
      "agent 'capstone:roslaunch launch/styx.launch' is a capstone stack (the original "
      "track's styx server): it drives sdc_gym/TrackLoop-v0, not sdc_gym/HighwayLoop-v0; the "
-     "kinds for sdc_gym/HighwayLoop-v0: a2c:, dqn:, external:, fsm:, ppo:, rllib:, sac:"),
+     "kinds for sdc_gym/HighwayLoop-v0: a2c:, dqn:, external:, fsm:, ppo:, qrdqn:, rllib:, sac:"),
     (f"dqn:{DQN}", TRACK,
      f"policy 'dqn:{DQN}' was trained on sdc_gym/HighwayLoopBehavior-v0: it drives "
      "sdc_gym/HighwayLoop-v0, not sdc_gym/TrackLoop-v0"),

@@ -478,7 +478,7 @@ def test_an_activation_is_named_and_resolved_to_its_torch_class(tmp_path, name):
      "lists, got [0]"),
     (["--algo", "sac"], {},
      ": algo 'sac' learns Box actions; sdc_gym/HighwayLoopBehavior-v0 has Discrete actions "
-     "(Discrete(9)): use one of ['ppo', 'a2c', 'dqn'] (the behavior envs take config "
+     "(Discrete(9)): use one of ['ppo', 'a2c', 'dqn', 'qrdqn'] (the behavior envs take config "
      "action: discrete or continuous)"),
 ])
 def test_bad_hyperparameters_and_algorithms_are_refused_before_sb3(tmp_path, cli, content,

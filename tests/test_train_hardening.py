@@ -59,7 +59,7 @@ def test_precedence_is_cli_then_run_config_then_hyperparameter_file_then_default
     ({"seed": "x"}, [], "config key 'seed' must be an int in [0, 4294967295], got 'x'"),
     ({"seed": -1}, [], "'seed' must be an int in [0, 4294967295], got -1"),
     ({"env": "sdc_gym/Nope-v0"}, [], "'env' must be a registered env id"),
-    ({"algo": "ddpg"}, [], "config key 'algo' must be one of ['ppo', 'dqn', 'sac', 'a2c']"),
+    ({"algo": "ddpg"}, [], "config key 'algo' must be one of ['ppo', 'dqn', 'qrdqn', 'sac', 'a2c']"),
     ({}, ["--hp", "learning_rate=abc"],
      "hyperparameter 'learning_rate' of PPO must be float | Schedule, got 'abc' (str)"),
     ({}, ["--hp", "learning_rate=-0.1"], "'learning_rate' must be a finite number in (0, 1]"),
