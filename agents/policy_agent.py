@@ -149,7 +149,8 @@ def check_policy_file(kind: str, path: str | Path, env_id: str) -> None:
 def _sb3_algorithm(model_path: Path, label: str) -> tuple[str, str]:
     """The module of the policy class an SB3 zip names and the algorithm it belongs to,
     read from its ``data`` JSON without unpickling anything. DQN and SAC have policy
-    modules of their own (``stable_baselines3.dqn.policies``); PPO and A2C share
+    modules of their own (``stable_baselines3.dqn.policies``, sb3-contrib's QR-DQN
+    ``sb3_contrib.qrdqn.policies``); PPO and A2C share
     ``stable_baselines3.common.policies`` and are told apart by PPO's ``clip_range``."""
     import json
     import zipfile
@@ -166,7 +167,7 @@ def _sb3_algorithm(model_path: Path, label: str) -> tuple[str, str]:
         raise ValueError(f"policy {label!r}: {model_path} is not a stable-baselines3 model "
                          f"file ({type(error).__name__}: {excerpt(str(error))})") from None
     parts = module.split(".")
-    if parts[:1] != ["stable_baselines3"] or len(parts) < 2:
+    if parts[0] not in ("stable_baselines3", "sb3_contrib") or len(parts) < 2:
         return module, module
     if parts[1] == "common":
         return module, "ppo" if "clip_range" in data else "a2c"
