@@ -15,7 +15,9 @@ local one for the run; :mod:`sdc_training.rllib_trainer`), hyperparameters from
 
 The run config (``--config``, YAML) names the ``env`` id, its ``config``, and optionally
 ``algo``, ``timesteps``, ``n_envs``, ``seed``, ``checkpoint_every`` and ``eval``
-(``every`` steps, ``episodes``, ``seed``: the first held-out seed). Hyperparameters come from
+(``every`` steps, ``episodes``, ``seed``: the first held-out seed) and ``validation``
+(``every`` steps, 0 by default, ``episodes``, ``seed``: one lap per validation seed, from
+2000, for model selection: ``sdc_training.validation_laps``). Hyperparameters come from
 ``configs/hyperparams/<algo>.yaml``, keyed by env id (as in rl-baselines3-zoo), and
 ``--hp key=value`` overrides them: the value is parsed as YAML (numbers, lists, mappings;
 never evaluated as Python), dotted keys reach into mappings (``policy_kwargs.net_arch=[64]``).
@@ -24,6 +26,9 @@ The run folder holds ``config.yaml`` (everything above, resolved, with the seed)
 ``command.txt`` (each exact command, one per line), ``checkpoints/`` (model and, for
 off-policy algorithms, the replay buffer, every ``--checkpoint-every`` steps),
 ``best_model.zip`` (best mean evaluation reward so far), ``evaluations.npz``,
+``validations.csv`` and ``best_validation_model.zip`` (with ``validation``: each result, and
+the model with the best eligible one: the highest mean mph without collision, or the
+shortest mean lap without a red light),
 ``replay_buffer.pkl`` (DQN, SAC: the final buffer),
 ``tensorboard/`` (SB3's curves plus ``driving/``: incidents per episode by kind and in
 all, success, mean speed and distance per episode, and lap time from the episodes that
@@ -64,6 +69,7 @@ from sdc_gym.validation.run_config import (
     ALGORITHMS,
     EVAL_DEFAULTS,
     OFF_POLICY_ALGORITHMS,
+    VALIDATION_DEFAULTS,
     check_algorithm_space,
     check_hyperparams,
     check_run_config,
@@ -79,7 +85,7 @@ are stable-baselines3's (``--framework sb3``, the default)."""
 FRAMEWORKS = ("sb3", "rllib")
 HYPERPARAMS_DIR = packaged_config("hyperparams")  # configs/hyperparams, installed too
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
-            "framework"}
+            "framework", "validation"}
 CHECKPOINT_EVERY = 10_000
 DEFAULT_TIMESTEPS = 100_000
 DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
@@ -116,6 +122,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "same interval)")
     parser.add_argument("--eval-every", type=int, default=None,
                         help="env steps between evaluations (0: none)")
+    parser.add_argument("--validate-every", type=int, default=None,
+                        help="env steps between validations: one lap per validation seed "
+                             "(the run config's 'validation': seeds from 2000, 40 laps), "
+                             "best_validation_model.zip and validations.csv (0: none)")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --output from its newest intact checkpoint")
     parser.add_argument("--resume-without-buffer", action="store_true",
@@ -219,6 +229,9 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
                              f"{config['framework']} run, not {args.framework}")
         if args.checkpoint_every is not None:
             config["checkpoint_every"] = args.checkpoint_every
+        if args.validate_every is not None:  # validation can start in a resumed run
+            config["validation"] = {**VALIDATION_DEFAULTS, **(config.get("validation") or {}),
+                                    "every": args.validate_every}
         validate(config, str(saved))
         return config
     if saved.is_file():
@@ -257,6 +270,11 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
                   else EVAL_DEFAULTS if evaluation is None else evaluation)
     if args.eval_every is not None and isinstance(evaluation, dict):
         evaluation["every"] = args.eval_every
+    validation = data.get("validation")
+    validation = ({**VALIDATION_DEFAULTS, **validation} if isinstance(validation, dict)
+                  else dict(VALIDATION_DEFAULTS) if validation is None else validation)
+    if args.validate_every is not None and isinstance(validation, dict):
+        validation["every"] = args.validate_every
     config = {
         "env": env_id,
         "config": first_given(data.get("config"), {}),
@@ -269,6 +287,7 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
                               os.cpu_count() or 1),
         "hyperparams": hyper,
         "eval": evaluation,
+        "validation": validation,
         "checkpoint_every": first_given(args.checkpoint_every, data.get("checkpoint_every"),
                                         CHECKPOINT_EVERY),
     }
@@ -302,6 +321,7 @@ def validate(config: dict[str, Any], source: str) -> None:
                   f" for framework {framework}")
     try:
         check_run_config(config, source, registered=lambda env_id: env_id in gym.registry)
+        check_validation(config, source)
         if framework == "rllib":
             check_rllib_config(config, source)
         else:
@@ -315,6 +335,24 @@ def validate(config: dict[str, Any], source: str) -> None:
     except (ValueError, TypeError) as error:  # an env's own check outside ConfigError
         raise SystemExit(f"{source}: cannot make {config['env']} with config "
                          f"{config['config']}: {error}") from None
+
+
+def check_validation(config: dict[str, Any], source: str) -> None:
+    """Validation laps (run config key ``validation``) need an SB3 run of a behavior env
+    with a lap (:data:`sdc_training.validation_laps.LAP_SECTIONS`)."""
+    from sdc_training.validation_laps import LAP_SECTIONS
+
+    every = (config.get("validation") or {}).get("every", 0)
+    if not every:
+        return
+    if config.get("framework", "sb3") != "sb3":
+        raise ConfigError(f"{source}: config key 'validation.every' must be 0 with framework "
+                          f"{config['framework']} (validation laps run in SB3 runs), "
+                          f"got {every}")
+    if config["env"] not in LAP_SECTIONS:
+        raise ConfigError(f"{source}: config key 'validation.every' must be 0 for env "
+                          f"{config['env']}: validation laps run on {sorted(LAP_SECTIONS)}, "
+                          f"got {every}")
 
 
 def make_vec_env(config: dict[str, Any], n_envs: int, seed: int,
@@ -405,6 +443,14 @@ def main(argv: list[str] | None = None) -> Path:
             eval_env, args.output, n_eval_episodes=int(evaluation["episodes"]),
             eval_freq=max(int(evaluation["every"]) // config["n_envs"], 1),
             deterministic=True, verbose=1))  # prints return, mph, incidents per evaluation
+    validation = config.get("validation") or VALIDATION_DEFAULTS
+    if validation["every"]:
+        from sdc_training.validation_laps import validation_callback
+
+        callbacks.append(validation_callback(
+            config["env"], config["config"], args.output,
+            every=max(int(validation["every"]) // config["n_envs"], 1),
+            episodes=int(validation["episodes"]), seed=int(validation["seed"])))
     if not args.no_progress:
         callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps

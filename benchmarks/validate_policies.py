@@ -19,46 +19,24 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-import gymnasium as gym
-import numpy as np
-
 import sdc_gym  # noqa: F401
 from sdc_agents.policy_agent import SB3_KINDS, load_model, training_config
-from sdc_evaluation.statistics import mean_interval
-from sdc_gym.envs.batch_vector import env_info
+from sdc_training.validation_laps import make_lap_envs, validate_model
+
+DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
 
 
 def validate(model_path: Path, algo: str, seed: int, episodes: int,
              max_duration: float) -> dict[str, float]:
     """One lap per seed of ``model_path``; the batch's mean mph, interval and incidents."""
     env_id, trained = training_config(model_path)
-    config = dict(trained)
-    config["highway"] = {**dict(config.get("highway") or {}), "laps": 1,
-                         "max_duration": max_duration}
-    envs = gym.make_vec(env_id or "sdc_gym/HighwayLoopBehavior-v0", num_envs=episodes,
-                        config=config)
-    model = load_model(algo, model_path)
-    observations, _ = envs.reset(seed=seed)
-    speeds = np.full(episodes, np.nan)
-    collisions = np.zeros(episodes, dtype=int)
-    incidents = np.zeros(episodes, dtype=int)
-    laps = np.zeros(episodes, dtype=bool)
-    done = np.zeros(episodes, dtype=bool)
-    while not done.all():
-        actions, _ = model.predict(observations, deterministic=True)
-        observations, _, terminated, truncated, infos = envs.step(actions)
-        for env in np.flatnonzero((terminated | truncated) & ~done):
-            summary = env_info(infos, env)["summary"]
-            speeds[env] = summary["mean_speed_mph"]
-            incidents[env] = summary["incident_total"]
-            collisions[env] = summary["incidents"].get("collision", 0)
-            laps[env] = summary["laps"] >= 1
-            done[env] = True
-    envs.close()
-    interval = mean_interval(speeds)
-    return {"mph": interval.value, "low": interval.low, "high": interval.high,
-            "collisions": int(collisions.sum()), "incidents": int(incidents.sum()),
-            "laps": int(laps.sum())}
+    env_id = env_id or DEFAULT_ENV
+    envs = make_lap_envs(env_id, trained, episodes, max_duration)
+    try:
+        score, _ = validate_model(load_model(algo, model_path), envs, env_id, seed)
+    finally:
+        envs.close()
+    return {"mph": score.value, "low": score.low, "high": score.high, **score.counts}
 
 
 def main(argv: list[str] | None = None) -> None:

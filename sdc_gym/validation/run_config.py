@@ -2,7 +2,8 @@
 
 A run config (YAML, ``train.py --config``) has the keys of :data:`RUN_RULES` plus ``env``
 (a registered id) and ``config`` (its env config, a mapping); ``eval`` is a mapping with
-the keys of :data:`EVAL_DEFAULTS`. Hyperparameters (``configs/hyperparams/<algo>.yaml``
+the keys of :data:`EVAL_DEFAULTS`, ``validation`` (optional) one with the keys of
+:data:`VALIDATION_DEFAULTS`. Hyperparameters (``configs/hyperparams/<algo>.yaml``
 and ``--hp KEY=VALUE``) must be parameters of the stable-baselines3 algorithm's
 constructor, of the type its annotation says (a float where it takes ``float | Schedule``:
 YAML cannot give a function), finite, and in range for the common ones
@@ -27,6 +28,9 @@ ALGORITHMS: Final = ("ppo", "dqn", "qrdqn", "sac", "a2c")
 OFF_POLICY_ALGORITHMS: Final = ("dqn", "qrdqn", "sac")
 """The algorithms with a replay buffer (checkpointed beside the model)."""
 EVAL_DEFAULTS: Final = {"every": 50_000, "episodes": 4, "seed": 10_000}
+VALIDATION_DEFAULTS: Final = {"every": 0, "episodes": 40, "seed": 2000}
+"""One lap per validation seed every ``every`` env steps (0: never), as one batch
+(``sdc_training.validation_laps``): model selection apart from the held-out seeds."""
 SEED_LIMIT: Final = 2**32 - 1  # numpy's and SB3's seeds are 32-bit
 MAX_N_ENVS: Final = 1024  # processes or a batch; memory and time bound it long before
 MAX_TIMESTEPS: Final = 10**12
@@ -39,6 +43,11 @@ RUN_RULES: Final[dict[str, Rule]] = {
     "eval.every": Number(0, MAX_TIMESTEPS, integer=True, unit="env steps; 0: no evaluation"),
     "eval.episodes": Number(1, 10_000, integer=True),
     "eval.seed": Number(0, SEED_LIMIT, integer=True, unit="the first held-out seed"),
+    "validation.every": Number(0, MAX_TIMESTEPS, integer=True,
+                               unit="env steps; 0: no validation"),
+    "validation.episodes": Number(2, MAX_N_ENVS, integer=True,
+                                  unit="laps, one batch; 2 at least for an interval"),
+    "validation.seed": Number(0, SEED_LIMIT, integer=True, unit="the first validation seed"),
 }
 HYPERPARAM_RULES: Final[dict[str, Rule]] = {
     "learning_rate": Number(0.0, 1.0, low_open=True),
@@ -77,7 +86,13 @@ def check_run_config(config: Mapping[str, Any], owner: str, registered: Any) -> 
     if not isinstance(evaluation, Mapping) or set(evaluation) - set(EVAL_DEFAULTS):
         raise ConfigError(f"{owner}: config key 'eval' must be a mapping with keys of "
                           f"{sorted(EVAL_DEFAULTS)}, got {excerpt(evaluation)}")
+    validation = config.get("validation", VALIDATION_DEFAULTS)
+    if not isinstance(validation, Mapping) or set(validation) - set(VALIDATION_DEFAULTS):
+        raise ConfigError(f"{owner}: config key 'validation' must be a mapping with keys of "
+                          f"{sorted(VALIDATION_DEFAULTS)}, got {excerpt(validation)}")
     for key, rule in RUN_RULES.items():
+        if key.startswith("validation.") and "validation" not in config:
+            continue  # a run from before the key existed
         node: Any = config
         for part in key.split("."):
             node = node.get(part) if isinstance(node, Mapping) else None

@@ -34,6 +34,7 @@ Python.
 from __future__ import annotations
 
 import math
+import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, fields
 from typing import Any
@@ -88,6 +89,78 @@ def _fast_constructor(cls: type) -> Callable[..., Any]:
 _new_car = _fast_constructor(TrackedCar)
 _new_lane_view = _fast_constructor(LaneView)
 _new_world = _fast_constructor(WorldModel)
+
+
+@dataclass(frozen=True)
+class RoadTables:
+    """A road's lookup tables for perception, built once per road and radius spacing and
+    shared read-only by every :class:`Perception` of it (a batch of 1,024 envs used to hold
+    1,024 copies, about 4.9 MB each on the default loop).
+
+    - ``geometry`` (6, n + 1) complex: point x + iy, right normal and curvature at
+      s = k h (k = 0 .. n; row n = row 0 one loop on), then each row's increment to the
+      next, for linear interpolation; ``geometry_scale`` = n / length.
+    - ``geometry_xy_rows`` (n + 1, 10): the same per sample as real numbers, x and y apart
+      (px, py, nx, ny, curvature, then their increments). A cycle interpolates it per car in
+      Python floats, which gives the same numbers as the complex expression in
+      ``Perception._lookup`` (a real times a complex is the two real products, then a sum).
+    - ``circle_curvature`` (lanes, m + 1): 1 / circumradius of each lane's centre line
+      through s, s + spacing, s + 2 spacing on a 1 m grid; ``radius_scale`` = m / length.
+    """
+
+    geometry: NDArray[np.complex128]
+    geometry_scale: float
+    geometry_xy_rows: FloatArray
+    circle_curvature: FloatArray
+    radius_scale: float
+
+
+_ROAD_TABLES: dict[tuple[int, float], tuple[weakref.ref[HighwayMap], RoadTables]] = {}
+
+
+def road_tables(road: HighwayMap, radius_spacing: float) -> RoadTables:
+    """The :class:`RoadTables` of ``road`` (cached while the road object lives)."""
+    key = (id(road), float(radius_spacing))
+    cached = _ROAD_TABLES.get(key)
+    if cached is not None and cached[0]() is road:
+        return cached[1]
+    tables = _build_road_tables(road, float(radius_spacing))
+    _ROAD_TABLES[key] = (weakref.ref(road, lambda _: _ROAD_TABLES.pop(key, None)), tables)
+    return tables
+
+
+def _build_road_tables(road: HighwayMap, spacing: float) -> RoadTables:
+    reference, length = road.reference, float(road.length)
+    n = max(math.ceil(length / _GEOMETRY_STEP), 16)
+    grid = np.arange(n + 2) * (length / n)
+    point, normal = reference.position(grid), reference.normal(grid)
+    base = np.column_stack([point[:, 0] + 1j * point[:, 1], normal[:, 0] + 1j * normal[:, 1],
+                            reference.curvature(grid)])
+    geometry = np.ascontiguousarray(np.hstack([base[:-1], np.diff(base, axis=0)]).T)
+    rows = geometry.T
+    xy_rows = np.ascontiguousarray(np.column_stack([
+        rows[:, 0].real, rows[:, 0].imag, rows[:, 1].real, rows[:, 1].imag, rows[:, 2].real,
+        rows[:, 3].real, rows[:, 3].imag, rows[:, 4].real, rows[:, 4].imag, rows[:, 5].real]))
+    m = max(math.ceil(length / _RADIUS_STEP), 16)
+    radius_grid = np.arange(m + 1) * (length / m)
+    circle = np.ascontiguousarray(np.stack([
+        _circumcurvature(reference, radius_grid, float(road.lane_center(lane)), spacing)
+        for lane in range(int(road.lane_count))]))
+    for table in (geometry, xy_rows, circle):
+        table.setflags(write=False)  # shared by every Perception of the road
+    return RoadTables(geometry, n / length, xy_rows, circle, m / length)
+
+
+def _circumcurvature(reference: Any, s: FloatArray, d: float, spacing: float) -> FloatArray:
+    """1 / circumradius through the points at s, s + spacing, s + 2 spacing, offset d."""
+    offset = np.full(len(s), d)
+    a = reference.to_xy(s, offset)
+    b = reference.to_xy(s + spacing, offset)
+    c = reference.to_xy(s + 2.0 * spacing, offset)
+    ab, bc, ca = b - a, c - b, a - c
+    cross = np.abs(ab[:, 0] * ca[:, 1] - ab[:, 1] * ca[:, 0])
+    sides = np.hypot(*ab.T) * np.hypot(*bc.T) * np.hypot(*ca.T)
+    return 2.0 * cross / sides
 
 
 @dataclass(frozen=True)
@@ -157,7 +230,6 @@ class Perception:
         self.road = road
         self.params = params or PerceptionParameters()
         p = self.params
-        reference = road.reference
         self._length = float(road.length)
         self._half = 0.5 * self._length
         self._lanes = int(road.lane_count)
@@ -165,36 +237,12 @@ class Perception:
         self._inverse_width = 1.0 / self._lane_width
         self._middle = self._lanes // 2
 
-        # Geometry table, complex x + iy: point, right normal, curvature at s = k h
-        # (k = 0 .. n; row n = row 0 one loop on), then each row's increment to the next,
-        # for linear interpolation.
-        n = max(math.ceil(self._length / _GEOMETRY_STEP), 16)
-        grid = np.arange(n + 2) * (self._length / n)
-        point, normal = reference.position(grid), reference.normal(grid)
-        base = np.column_stack([point[:, 0] + 1j * point[:, 1], normal[:, 0] + 1j * normal[:, 1],
-                                reference.curvature(grid)])
-        self._geometry = np.ascontiguousarray(np.hstack([base[:-1], np.diff(base, axis=0)]).T)
-        self._geometry_scale = n / self._length
-
-        # The same table as Python tuples of floats per sample, x and y apart (the
-        # curvature is real): px, py, nx, ny, curvature, then their increments. A cycle
-        # interpolates it per car in Python floats, which gives the same numbers as the
-        # array expression in _lookup (a real times a complex is the two real products,
-        # then a sum).
-        self._geometry_xy_rows = np.ascontiguousarray(np.array([
-            (point.real, point.imag, normal.real, normal.imag, bend.real,
-             point_step.real, point_step.imag, normal_step.real, normal_step.imag,
-             bend_step.real)
-            for point, normal, bend, point_step, normal_step, bend_step
-            in self._geometry.T.tolist()]))
-
-        # Circumradius table: the reciprocal (curvature of the circumcircle), per lane.
-        m = max(math.ceil(self._length / _RADIUS_STEP), 16)
-        grid = np.arange(m + 1) * (self._length / m)
-        self._radius_scale = m / self._length
-        self._circle_curvature = np.ascontiguousarray(np.stack([
-            self._circumcurvature(grid, float(road.lane_center(lane)))
-            for lane in range(self._lanes)]))
+        tables = road_tables(road, p.radius_spacing)
+        self._geometry = tables.geometry
+        self._geometry_scale = tables.geometry_scale
+        self._geometry_xy_rows = tables.geometry_xy_rows
+        self._radius_scale = tables.radius_scale
+        self._circle_curvature = tables.circle_curvature
 
         self._empty_views = tuple(LaneView(lane) for lane in range(self._lanes))
 
@@ -245,19 +293,6 @@ class Perception:
         index = u.astype(np.intp)  # s < length: at most n, the table's last row
         rows = np.take(self._geometry, index, axis=1)
         return rows[:3] + (u - index) * rows[3:]
-
-    def _circumcurvature(self, s: FloatArray, d: float) -> FloatArray:
-        """1 / circumradius through the points at s, s + spacing, s + 2 spacing, offset d."""
-        reference = self.road.reference
-        spacing = self.params.radius_spacing
-        offset = np.full(len(s), d)
-        a = reference.to_xy(s, offset)
-        b = reference.to_xy(s + spacing, offset)
-        c = reference.to_xy(s + 2.0 * spacing, offset)
-        ab, bc, ca = b - a, c - b, a - c
-        cross = np.abs(ab[:, 0] * ca[:, 1] - ab[:, 1] * ca[:, 0])
-        sides = np.hypot(*ab.T) * np.hypot(*bc.T) * np.hypot(*ca.T)
-        return 2.0 * cross / sides
 
     def _buffers(self, envs: int, cars: int) -> tuple[SensedBatch, tuple[NDArray, ...]]:
         """The arrays a cycle of ``envs`` envs of ``cars`` rows fills (kept: a cycle's
