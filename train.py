@@ -27,8 +27,8 @@ The run folder holds ``config.yaml`` (everything above, resolved, with the seed)
 off-policy algorithms, the replay buffer, every ``--checkpoint-every`` steps),
 ``best_model.zip`` (best mean evaluation reward so far), ``evaluations.npz``,
 ``validations.csv`` and ``best_validation_model.zip`` (with ``validation``: each result, and
-the model with the best eligible one: the highest mean mph without collision, or the
-shortest mean lap without a red light),
+the model with the best eligible one: the highest mean mph, or the shortest mean lap, of
+the results without any incident),
 ``replay_buffer.pkl`` (DQN, SAC: the final buffer),
 ``tensorboard/`` (SB3's curves plus ``driving/``: incidents per episode by kind and in
 all, success, mean speed and distance per episode, and lap time from the episodes that

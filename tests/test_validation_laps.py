@@ -31,9 +31,11 @@ KEEP_CRUISE = ACTION_NAMES.index("keep/cruise")
 LEFT_CRUISE = ACTION_NAMES.index("left/cruise")
 
 
-def highway_summary(mph: float, collisions: int = 0, laps: int = 1) -> dict:
-    return {"mean_speed_mph": mph, "incidents": {"collision": collisions} if collisions else {},
-            "incident_total": collisions, "laps": laps}
+def highway_summary(mph: float, collisions: int = 0, laps: int = 1, jerk: int = 0) -> dict:
+    incidents = {name: count for name, count in (("collision", collisions), ("jerk", jerk))
+                 if count}
+    return {"mean_speed_mph": mph, "incidents": incidents,
+            "incident_total": collisions + jerk, "laps": laps}
 
 
 def track_summary(lap: float | None, red: int = 0) -> dict:
@@ -53,6 +55,8 @@ def test_scores_have_known_answers_and_rank_by_eligibility():
                                    highway_summary(50.0, laps=0)])
     assert crashed.value == 50.0 and not crashed.eligible and crashed.counts["laps"] == 1
     assert fast.beats(None) and fast.beats(crashed) and not crashed.beats(fast)
+    jerky = score_laps(HIGHWAY, [highway_summary(50.0, jerk=1), highway_summary(50.0)])
+    assert not jerky.eligible and jerky.counts == {"laps": 2, "collisions": 0, "incidents": 1}
     slower = score_laps(HIGHWAY, [highway_summary(45.0), highway_summary(45.5)])
     assert not slower.beats(fast) and fast.beats(slower)
     # The track: shorter laps win; a red light or an unfinished lap makes a result ineligible.
