@@ -10,6 +10,11 @@ at every point). With two or more runs the curve is their mean at each evaluatio
 a 95 % Student t interval over the runs (the project's interval, sdc_evaluation.statistics);
 a single run is drawn alone. ``--reference NAME=MPH`` draws a rule-based agent's mean
 speed on the same evaluation episodes as a horizontal line. Prints the table it plots.
+
+``--source validation`` draws the validation laps instead (one lap per validation seed,
+40 by default: ``validations.csv`` of the run, written by train.py's ``validation`` key or
+``benchmarks/validate_policies.py --record RUN``), which rank checkpoints far better than
+the periodic 4-episode evaluation.
 """
 
 from __future__ import annotations
@@ -43,9 +48,28 @@ def eval_curve(run: Path, tag: str = EVAL_TAG) -> dict[int, float]:
     return curve
 
 
-def group_curve(runs: list[Path]) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def validation_curve(run: Path) -> dict[int, float]:
+    """``{samples: mean mph}`` of one run folder's ``validations.csv`` (the last row per
+    step when a step was validated twice, e.g. after a resume)."""
+    import csv
+
+    from sdc_training.validation_laps import CSV_NAME
+
+    path = run / CSV_NAME
+    if not path.is_file():
+        raise SystemExit(f"{run}: no {CSV_NAME} (train with --validate-every, or run "
+                         f"benchmarks/validate_policies.py --record {run} on its checkpoints)")
+    with path.open(encoding="utf-8", newline="") as handle:
+        return {int(row["timesteps"]): float(row["value"]) for row in csv.DictReader(handle)}
+
+
+CURVES = {"eval": eval_curve, "validation": validation_curve}
+
+
+def group_curve(runs: list[Path], source: str = "eval") -> tuple[np.ndarray, np.ndarray,
+                                                                 np.ndarray, np.ndarray]:
     """``(steps, mean, low, high)`` over the steps every run evaluated at."""
-    curves = [eval_curve(run) for run in runs]
+    curves = [CURVES[source](run) for run in runs]
     steps = sorted(set.intersection(*(set(curve) for curve in curves)))
     if not steps:
         raise SystemExit(f"runs {[str(run) for run in runs]} share no evaluation step")
@@ -71,8 +95,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--reference", action="append", default=[], metavar="NAME=MPH",
                         help="a rule-based agent's mean mph on the same evaluation episodes")
     parser.add_argument("--output", type=Path, default=Path("learning_curves.png"))
-    parser.add_argument("--title", default="HighwayLoopBehavior-v0: periodic evaluation")
+    parser.add_argument("--title", default=None,
+                        help="default: the env and the source of the curves")
+    parser.add_argument("--source", choices=sorted(CURVES), default="eval",
+                        help="eval: train.py's periodic evaluation (TensorBoard); validation: "
+                             "the validation laps (validations.csv)")
     args = parser.parse_args(argv)
+    title = args.title or ("HighwayLoopBehavior-v0: " + (
+        "periodic evaluation" if args.source == "eval" else "validation laps"))
 
     import matplotlib
 
@@ -83,7 +113,7 @@ def main(argv: list[str] | None = None) -> None:
     for group in args.group:
         label, folders = parse_pair(group, "group")
         runs = [Path(folder) for folder in folders.split(",")]
-        steps, mean, low, high = group_curve(runs)
+        steps, mean, low, high = group_curve(runs, args.source)
         line, = axes.plot(steps / 1e6, mean, marker="o", markersize=3,
                           label=f"{label} ({len(runs)} seed{'s' * (len(runs) > 1)})")
         if len(runs) > 1:
@@ -96,8 +126,9 @@ def main(argv: list[str] | None = None) -> None:
         axes.axhline(float(mph), linestyle="--", color="black", linewidth=1,
                      label=f"{name} on the same episodes ({float(mph):.2f})")
     axes.set_xlabel("samples (millions of decisions)")
-    axes.set_ylabel("mean mph, evaluation episodes")
-    axes.set_title(args.title)
+    axes.set_ylabel("mean mph, " + ("evaluation episodes" if args.source == "eval"
+                                    else "validation laps"))
+    axes.set_title(title)
     axes.grid(alpha=0.3)
     axes.legend(loc="lower right", fontsize=8)
     figure.tight_layout()

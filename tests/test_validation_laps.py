@@ -168,3 +168,30 @@ def test_bad_validation_settings_are_clear_errors(tmp_path, validation, env, mes
     with pytest.raises(SystemExit, match=message):
         train.run_config(train.parse_args(["--config", str(config), "--output",
                                            str(tmp_path / "run")]))
+
+
+def test_learning_curves_read_validation_laps_with_an_interval_over_training_seeds(tmp_path):
+    """benchmarks/learning_curves.py --source validation: each run's validations.csv (the
+    last row of a step validated twice), then the mean and 95 % t interval over the runs."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import learning_curves
+
+    from sdc_training.validation_laps import append_row
+
+    runs = [tmp_path / "seed1", tmp_path / "seed2"]
+    for run, values in zip(runs, ([44.0, 46.0], [45.0, 47.0]), strict=True):
+        run.mkdir()
+        for steps, value in zip((200_000, 400_000), values, strict=True):
+            append_row(run, steps, LapScore(value, value - 1, value + 1, True, True, {}))
+    append_row(runs[1], 400_000, LapScore(48.0, 47.0, 49.0, True, True, {}))  # a resume
+    assert learning_curves.validation_curve(runs[1]) == {200_000: 45.0, 400_000: 48.0}
+    steps, mean, low, high = learning_curves.group_curve(runs, "validation")
+    assert list(steps) == [200_000, 400_000] and list(mean) == [44.5, 47.0]
+    # Two runs 1 apart (44, 45): sd 0.7071, t(0.975, 1) = 12.706 -> +-6.353.
+    assert high[0] - mean[0] == pytest.approx(12.7062 * 0.70711 / 2 ** 0.5, rel=1e-4)
+    assert mean[0] - low[0] == pytest.approx(high[0] - mean[0])
+    with pytest.raises(SystemExit, match=r"no validations\.csv"):
+        learning_curves.validation_curve(tmp_path)
