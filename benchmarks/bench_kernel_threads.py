@@ -6,7 +6,7 @@
 
 ``HighwayLoopBehavior-v0`` batches (``gym.make_vec(..., vectorization_mode=
 "vector_entry_point")``, random discrete actions, the default config), one per E (a batch
-of 1024 behavior envs holds ~6 GB: each env's perception keeps its own road tables), made
+of 1024 behavior envs holds ~130 MB: the perceptions share the road tables), made
 with ``highway.kernel_threads = 2`` and warmed up (the parallel twins compile at the
 first step), then timed in rounds: each round steps the batch for ``--env-steps`` env
 steps with its kernels on 1 thread and as many on 2 (``KernelThreads.set``: the same

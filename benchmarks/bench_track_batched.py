@@ -94,7 +94,8 @@ def reference_lap(seed: int) -> dict[str, Any]:
 
     try:
         from sdc_agents.registry import make_agent
-    except ModuleNotFoundError:  # a reference tree from before issue 23's names
+    except ImportError:  # a reference tree from before issue 23's names (the installed
+        # sdc_agents then maps to this checkout's agents/, which the old sdc_gym cannot serve)
         from agents.registry import make_agent  # the old import name
 
     env = gym.make(TRACK, config={"observe_light_states": True})
