@@ -12,17 +12,38 @@ samples after a warm-up rollout:
 * ``torchrl``: torchrl's ``ClipPPOLoss`` and ``GAE`` in a plain loop over the batched env
   (no collector: the env already is a batch of numpy arrays);
 * ``rllib``: RLlib PPO as ``training/`` builds it (``benchmarks/bench_ray.py``'s case);
+* ``pufferlib``: PufferLib's own PPO trainer (``pufferlib.pufferl.PuffeRL``, pufferlib-core
+  3.0.23) over the batch as one native ``PufferEnv`` of E agents (no per-env Python);
+  ``pufferlib-pool``: the same trainer over PufferLib's ``Multiprocessing`` vector env,
+  two worker processes of E / 2 envs each and a batch of one worker, so one half of the
+  batch steps while the trainer runs the policy on the other (its env pool: collection
+  overlapped with inference; PuffeRL still alternates collection and update);
 * each ``*-noop`` case: the same learner on a no-op env of the same spaces (zeros for
-  observations, no episode end): the learner's own cost, its ceiling on this machine.
+  observations, no episode end): the learner's own cost, its ceiling on this machine;
+* ``env``, ``env-kt2``: the env alone, random actions on the native batch, its kernels on
+  one thread and on two (the behavior env's ``highway.kernel_threads: 2``).
 
 The rate printed is min/median/max over ``--rounds`` rounds (rounds interleave the cases, so
-the shared machine's load hits them alike), with the ratio of medians to ``sb3``.
+the shared machine's load hits them alike), with the ratio of medians to ``sb3``. Then the
+bounds, from the medians: a learner that alternates collection and update spends
+1/env + 1/learner seconds per sample, so it cannot beat 1 / (1/env + 1/learner) (the
+*sequential bound*); one that overlaps them on two cores is bounded by min(env, learner).
+
+PufferLib is not a project dependency; its cases are skipped with the reason printed when
+it does not import. pufferlib-core 3.0.23's wheel needs torch 2.9.0 and CUDA for its
+compiled ``_C`` (the PPO advantage kernel), so install it with ``--no-deps`` (plus
+``psutil pyro-ppl pyro-api opt_einsum rich_argparse``, also ``--no-deps``, keeping torch
+2.13.0 CPU); :func:`puff_advantage` here is that kernel's C++ CPU loop ported to numba and
+registered under the same op name, so PuffeRL runs unchanged.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import logging
+import os
+import signal
 import statistics
 import sys
 import time
@@ -78,6 +99,35 @@ class NoopVecEnv:
 
     def close(self) -> None:
         pass
+
+
+def sequential_bound(env_rate: float, learner_rate: float) -> float:
+    """Samples/s of a learner that alternates collection and update: each sample costs
+    the env's time plus the learner's, ``1 / (1/env + 1/learner)``."""
+    return 1.0 / (1.0 / env_rate + 1.0 / learner_rate)
+
+
+def env_rate(n_envs: int, samples: int, kernel_threads: int) -> float:
+    """The env alone: random discrete actions on the native batch (SAME_STEP autoreset, as
+    :class:`~sdc_gym.envs.sb3.SB3VecEnv` runs it), after a warm-up of 64 steps."""
+    from gymnasium.vector import AutoresetMode
+
+    from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
+
+    config = {"highway": {"kernel_threads": kernel_threads}} if kernel_threads > 1 else None
+    env = HighwayLoopBehaviorVectorEnv(n_envs, config, autoreset_mode=AutoresetMode.SAME_STEP)
+    steps = max(1, samples // n_envs)
+    actions = np.random.default_rng(0).integers(0, env.single_action_space.n,
+                                                (steps + 64, n_envs))
+    env.reset(seed=0)
+    for t in range(64):
+        env.step(actions[t])
+    started = time.perf_counter()
+    for t in range(64, steps + 64):
+        env.step(actions[t])
+    wall = time.perf_counter() - started
+    env.close()
+    return steps * n_envs / wall
 
 
 def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
@@ -201,17 +251,278 @@ def torchrl_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     return done_samples / wall
 
 
+def puff_advantage(values: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
+                   importance: np.ndarray, advantages: np.ndarray, gamma: float,
+                   lam: float, rho_clip: float, c_clip: float) -> None:
+    """PufferLib's advantage (GAE with V-trace clipping of the importance ratio), in place,
+    over ``[segments, horizon]`` float32 arrays: the C++ CPU kernel
+    ``compute_puff_advantage_cpu`` of pufferlib-core 3.0.23 (``extensions/pufferlib.cpp``),
+    whose compiled form needs CUDA. Per row, backwards from ``horizon - 2``:
+    ``delta = rho_t (r[t+1] + gamma v[t+1] (1 - d[t+1]) - v[t])`` and
+    ``a[t] = delta + gamma lam c_t a[t+1] (1 - d[t+1])`` with ``rho_t = min(w[t], rho_clip)``,
+    ``c_t = min(w[t], c_clip)``; the last column is left as given. float32 throughout, as
+    the C++."""
+    _puff_advantage_kernel()(values, rewards, dones, importance, advantages,
+                             np.float32(gamma), np.float32(lam), np.float32(rho_clip),
+                             np.float32(c_clip))
+
+
+_KERNEL: list[Any] = []
+
+
+def _puff_advantage_kernel() -> Any:
+    if not _KERNEL:
+        import numba
+
+        @numba.njit(cache=False)
+        def kernel(values, rewards, dones, importance, advantages, gamma, lam, rho_clip,
+                   c_clip):  # pragma: no cover - compiled
+            one = np.float32(1.0)
+            for row in range(values.shape[0]):
+                last = np.float32(0.0)
+                for t in range(values.shape[1] - 2, -1, -1):
+                    nonterminal = one - dones[row, t + 1]
+                    rho = min(importance[row, t], rho_clip)
+                    c = min(importance[row, t], c_clip)
+                    delta = rho * (rewards[row, t + 1] + gamma * values[row, t + 1]
+                                   * nonterminal - values[row, t])
+                    last = delta + gamma * lam * c * last * nonterminal
+                    advantages[row, t] = last
+
+        _KERNEL.append(kernel)
+    return _KERNEL[0]
+
+
+_PUFFER_LIBRARY: list[Any] = []
+
+
+def import_pufferl() -> Any:
+    """``pufferlib.pufferl`` with its PPO advantage op available on CPU (see the module
+    docstring), and the process settings its import changes put back: it turns every
+    RuntimeWarning into an error and makes Ctrl-C exit the process on the spot."""
+    import torch
+
+    handler = signal.getsignal(signal.SIGINT)
+    log = logging.getLogger("pufferlib")
+    level = log.level
+    log.setLevel(logging.ERROR)  # its "no _C: a pure-PyTorch fallback" is the op below
+    with warnings.catch_warnings():
+        import pufferlib.pufferl as pufferl
+    signal.signal(signal.SIGINT, handler)
+    log.setLevel(level)
+    if not pufferl._C_AVAILABLE and not _PUFFER_LIBRARY:
+        library = torch.library.Library("pufferlib", "DEF")
+        library.define("compute_puff_advantage(Tensor(a!) values, Tensor(b!) rewards, "
+                       "Tensor(c!) dones, Tensor(d!) importance, Tensor(e!) advantages, "
+                       "float gamma, float lambda, float rho_clip, float c_clip) -> ()")
+
+        def compute(values, rewards, dones, importance, advantages, gamma, lam, rho_clip,
+                    c_clip) -> None:
+            # detach: PuffeRL passes the live ratio (the C++ reads its data pointer alike)
+            puff_advantage(*(t.detach().numpy() for t in (values, rewards, dones,
+                                                          importance, advantages)),
+                           gamma, lam, rho_clip, c_clip)
+
+        library.impl("compute_puff_advantage", compute, "CPU")
+        _PUFFER_LIBRARY.append(library)  # the registration lives as long as the object
+    pufferl._C_AVAILABLE = True
+    return pufferl
+
+
+def puffer_env(n_envs: int, noop: bool, buf: Any = None, seed: int = 0) -> Any:
+    """The batch as one native ``PufferEnv`` of ``n_envs`` agents: the env writes each
+    step's arrays into PufferLib's buffers (shared memory in a worker process), ends reset
+    within the step (SAME_STEP: the next episode's first observation, the ended one's
+    reward and flag), no infos (PuffeRL only averages them into its dashboard)."""
+    import pufferlib
+    from gymnasium.vector import AutoresetMode
+
+    from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
+
+    class HighwayPufferEnv(pufferlib.PufferEnv):
+        def __init__(self) -> None:
+            self.vector = NoopVecEnv(n_envs) if noop else HighwayLoopBehaviorVectorEnv(
+                n_envs, autoreset_mode=AutoresetMode.SAME_STEP)
+            self.single_observation_space = self.vector.single_observation_space
+            self.single_action_space = self.vector.single_action_space
+            self.num_agents = n_envs
+            super().__init__(buf)
+
+        def reset(self, seed: Any = None) -> tuple[np.ndarray, list]:
+            obs, _ = self.vector.reset(seed=seed)
+            self.observations[:] = obs
+            return self.observations, []
+
+        def step(self, actions: Any) -> tuple[np.ndarray, ...]:
+            obs, reward, terminated, truncated, _ = self.vector.step(actions)
+            self.observations[:] = obs
+            self.rewards[:] = reward
+            self.terminals[:] = terminated
+            self.truncations[:] = truncated
+            return self.observations, self.rewards, self.terminals, self.truncations, []
+
+        def close(self) -> None:
+            self.vector.close()
+
+    return HighwayPufferEnv()
+
+
+def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int,
+                   workers: int = 0) -> float:
+    """PufferLib's PPO trainer (``PuffeRL``: ``evaluate()`` fills ``batch_size`` samples,
+    ``train()`` runs ``update_epochs x batch_size / minibatch_size`` minibatch steps) with
+    the project's hyperparameters, the policy SB3's MlpPolicy's shape (separate 64 x 64
+    tanh actor and critic). ``workers`` 0: the batch in this process (PufferLib's native
+    vectorization); 2: ``pufferlib.vector.Multiprocessing``, two processes of E / 2 envs,
+    the trainer taking one worker's half while the other steps."""
+    import tempfile
+
+    import pufferlib.vector
+    import torch
+    from torch import nn
+
+    pufferl = import_pufferl()
+    torch.set_num_threads(threads)
+    torch.manual_seed(0)
+    hyper = ppo_settings(n_envs)
+    if workers:
+        if n_envs % workers:
+            raise SystemExit(f"pufferlib-pool: E = {n_envs} must divide into {workers} workers")
+        vecenv = pufferlib.vector.make(
+            lambda buf=None, seed=0: puffer_env(n_envs // workers, noop, buf, seed),
+            backend=pufferlib.vector.Multiprocessing, num_envs=workers,
+            num_workers=workers, batch_size=1)
+    else:
+        vecenv = pufferlib.vector.make(lambda: puffer_env(n_envs, noop))
+    width = hyper["policy_kwargs"]["net_arch"]
+    n_obs = int(np.prod(vecenv.single_observation_space.shape))
+    n_act = int(vecenv.single_action_space.n)
+
+    def mlp(out: int) -> nn.Sequential:
+        layers: list[nn.Module] = []
+        size = n_obs
+        for w in width:
+            layers += [nn.Linear(size, w), nn.Tanh()]
+            size = w
+        return nn.Sequential(*layers, nn.Linear(size, out))
+
+    class Policy(nn.Module):
+        def __init__(self) -> None:
+            super().__init__()
+            self.actor, self.critic = mlp(n_act), mlp(1)
+
+        def forward_eval(self, obs: Any, state: Any = None) -> tuple[Any, Any]:
+            obs = obs.float()
+            return self.actor(obs), self.critic(obs)
+
+        forward = forward_eval
+
+    class Trainer(pufferl.PuffeRL):
+        def print_dashboard(self, *args: Any, **kwargs: Any) -> None:
+            pass  # a full-screen rich dashboard, redrawn every update
+
+    rollout = n_envs * hyper["n_steps"]
+    config = {
+        "env": ENV_ID, "seed": 0, "torch_deterministic": False, "device": "cpu",
+        "cpu_offload": False, "use_rnn": False, "compile": False, "compile_mode": None,
+        "compile_fullgraph": False, "precision": "float32", "optimizer": "adam",
+        "batch_size": rollout, "bptt_horizon": hyper["n_steps"],
+        "minibatch_size": hyper["batch_size"], "max_minibatch_size": hyper["batch_size"],
+        "update_epochs": hyper["n_epochs"], "learning_rate": hyper["learning_rate"],
+        "adam_beta1": 0.9, "adam_beta2": 0.999, "adam_eps": 1e-5, "anneal_lr": False,
+        "gamma": hyper["gamma"], "gae_lambda": hyper["gae_lambda"],
+        "clip_coef": hyper["clip_range"], "vf_clip_coef": 1e9, "vf_coef": 0.5,
+        "ent_coef": hyper["ent_coef"], "max_grad_norm": 0.5,
+        "prio_alpha": 0.0, "prio_beta0": 1.0,  # uniform minibatches, as SB3's
+        "vtrace_rho_clip": 1.0, "vtrace_c_clip": 1.0,
+        "total_timesteps": 1 << 40, "checkpoint_interval": 1 << 30,
+        "data_dir": tempfile.gettempdir(),
+    }
+    trainer = Trainer(config, vecenv, Policy())
+    try:
+        trainer.evaluate()  # warm-up rollout and update
+        trainer.train()
+        started = time.perf_counter()
+        done_samples = 0
+        while done_samples < samples:
+            trainer.evaluate()
+            trainer.train()
+            done_samples += rollout
+        wall = time.perf_counter() - started
+    finally:
+        trainer.utilization.stop()
+        vecenv.close()
+    return done_samples / wall
+
+
 def rllib_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     from bench_ray import rllib_samples_per_second
 
     return rllib_samples_per_second(samples, 1)
 
 
+def pufferlib_pool_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return pufferlib_rate(n_envs, samples, noop, threads, workers=2)
+
+
+def env_alone_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(n_envs, samples, 1)
+
+
+def env_kt2_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(n_envs, samples, 2)
+
+
 CASES = {
+    "env": (env_alone_rate, False), "env-kt2": (env_kt2_rate, False),
     "sb3": (sb3_rate, False), "sb3-noop": (sb3_rate, True),
     "torchrl": (torchrl_rate, False), "torchrl-noop": (torchrl_rate, True),
+    "pufferlib": (pufferlib_rate, False), "pufferlib-noop": (pufferlib_rate, True),
+    "pufferlib-pool": (pufferlib_pool_rate, False),
+    "pufferlib-pool-noop": (pufferlib_pool_rate, True),
     "rllib": (rllib_rate, False),
 }
+OPTIONAL = {"torchrl": "torchrl", "pufferlib": "pufferlib"}
+"""Case prefix -> the module it needs (none is a project dependency)."""
+LEARNERS = ("sb3", "torchrl", "pufferlib", "pufferlib-pool")
+"""The learners whose bounds are printed when their case, no-op case and ``env`` ran."""
+
+
+def print_bounds(medians: dict[str, float]) -> None:
+    """Each learner's end to end rate against its bounds (module docstring), from medians."""
+    envs = [case for case in ("env", "env-kt2") if case in medians]
+    rows = [learner for learner in LEARNERS
+            if learner in medians and f"{learner}-noop" in medians]
+    if not envs or not rows:
+        return
+    print(f"\n{'learner':<16}{'env':>9}{'env':>9}{'learner':>9}{'sequential':>12}"
+          f"{'overlap':>9}{'end to end':>12}{'/ seq.':>8}")
+    print(f"{'':<16}{'case':>9}{'alone':>9}{'alone':>9}{'bound':>12}{'bound':>9}")
+    for learner in rows:
+        for env in envs:
+            alone, own = medians[env], medians[f"{learner}-noop"]
+            bound = sequential_bound(alone, own)
+            print(f"{learner:<16}{env:>9}{alone:>9,.0f}{own:>9,.0f}{bound:>12,.0f}"
+                  f"{min(alone, own):>9,.0f}{medians[learner]:>12,.0f}"
+                  f"{medians[learner] / bound:>8.2f}")
+
+
+def puffer_importable() -> bool:
+    """Whether PufferLib's trainer imports; if not, the reason in ``.reason``."""
+    if importlib.util.find_spec("pufferlib") is None:
+        puffer_importable.reason = ("pufferlib is not installed (not a project dependency; "
+                                    "pip install --no-deps pufferlib-core==3.0.23 psutil "
+                                    "pyro-ppl pyro-api opt_einsum rich_argparse)")
+        return False
+    try:
+        import_pufferl()
+    except ImportError as error:
+        puffer_importable.reason = f"pufferlib.pufferl does not import: {error}"
+        return False
+    return True
+
+
+puffer_importable.reason = ""
 
 
 def main() -> None:
@@ -222,8 +533,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--threads", type=int, default=1, help="torch threads per case")
     parser.add_argument("--cases", default=None,
-                        help=f"comma-separated, of {', '.join(CASES)} (default: sb3, "
-                             "sb3-noop, and torchrl, torchrl-noop when torchrl imports)")
+                        help=f"comma-separated, of {', '.join(CASES)} (default: env, "
+                             "env-kt2, sb3, sb3-noop, torchrl, torchrl-noop, pufferlib, "
+                             "pufferlib-noop; the torchrl and pufferlib ones skipped, with "
+                             "the reason printed, when they do not import)")
     parser.add_argument("--batch-size", type=int, default=None,
                         help="PPO minibatch (default: the project's)")
     parser.add_argument("--n-steps", type=int, default=None,
@@ -238,27 +551,27 @@ def main() -> None:
             OVERRIDES[name] = value
     have_torchrl = importlib.util.find_spec("torchrl") is not None
     if args.cases is None:
-        args.cases = "sb3,sb3-noop" + (",torchrl,torchrl-noop" if have_torchrl else "")
-        if not have_torchrl:
-            print("torchrl is not installed (not a project dependency): its cases are left "
-                  "out; see --cases")
+        args.cases = "env,env-kt2,sb3,sb3-noop,torchrl,torchrl-noop,pufferlib,pufferlib-noop"
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     for case in cases:
         if case not in CASES:
             parser.error(f"--cases: unknown case {case!r}; choices: {', '.join(CASES)}")
-    missing = [case for case in cases if case.startswith("torchrl")] \
-        if not have_torchrl else []
-    if missing:  # not among the project's dependencies: a benchmark-only comparison
-        parser.error(f"--cases {','.join(missing)}: needs torchrl, which the project does "
-                     "not install (pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 "
-                     "pyvers, into a separate --target on PYTHONPATH, keeps torch 2.13.0), "
-                     "or leave them out: --cases sb3,sb3-noop,rllib")
+    if "torchrl" in args.cases and not have_torchrl:
+        print("skipping the torchrl cases: torchrl is not installed (not a project "
+              "dependency; pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 pyvers, "
+              "into a separate --target on PYTHONPATH, keeps torch 2.13.0)")
+    if "pufferlib" in args.cases and not puffer_importable():
+        print(f"skipping the pufferlib cases: {puffer_importable.reason}")
+    cases = [case for case in cases
+             if not (case.startswith("torchrl") and not have_torchrl)
+             and not (case.startswith("pufferlib") and not puffer_importable())]
     warnings.filterwarnings("ignore")
     hyper = ppo_settings(args.envs)
     print(f"{ENV_ID}, E={args.envs}, PPO: n_steps={hyper['n_steps']} per env "
           f"({hyper['n_steps'] * args.envs} per rollout), batch_size={hyper['batch_size']}, "
           f"n_epochs={hyper['n_epochs']}, net_arch={hyper['policy_kwargs']['net_arch']}; "
-          f"{args.samples:,} samples per case, torch threads {args.threads}")
+          f"{args.samples:,} samples per case, torch threads {args.threads}; load average "
+          f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}")
     rates: dict[str, list[float]] = {case: [] for case in cases}
     for round_ in range(args.rounds):
         for case in cases:
@@ -266,11 +579,13 @@ def main() -> None:
             rates[case].append(fn(args.envs, args.samples, noop, args.threads))
             print(f"  round {round_ + 1} {case}: {rates[case][-1]:,.0f} samples/s", flush=True)
     base = statistics.median(rates["sb3"]) if "sb3" in rates else None
-    print(f"\n{'learner':<14}{'min':>10}{'median':>10}{'max':>10}{'x sb3':>8}")
+    print(f"\n{'case':<20}{'min':>10}{'median':>10}{'max':>10}{'x sb3':>8}")
     for case, values in rates.items():
         med = statistics.median(values)
         ratio = f"{med / base:.2f}" if base else "-"
-        print(f"{case:<14}{min(values):>10,.0f}{med:>10,.0f}{max(values):>10,.0f}{ratio:>8}")
+        print(f"{case:<20}{min(values):>10,.0f}{med:>10,.0f}{max(values):>10,.0f}{ratio:>8}")
+    print_bounds({case: statistics.median(values) for case, values in rates.items()})
+    print(f"load average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":
