@@ -18,6 +18,8 @@ samples after a warm-up rollout:
   two worker processes of E / 2 envs each and a batch of one worker, so one half of the
   batch steps while the trainer runs the policy on the other (its env pool: collection
   overlapped with inference; PuffeRL still alternates collection and update);
+  ``pufferlib-kt2``: ``pufferlib`` with the env's kernels on two threads (the learner
+  idles while the env steps, so the second core is free for them);
 * each ``*-noop`` case: the same learner on a no-op env of the same spaces (zeros for
   observations, no episode end): the learner's own cost, its ceiling on this machine;
 * ``env``, ``env-kt2``: the env alone, random actions on the native batch, its kernels on
@@ -329,7 +331,8 @@ def import_pufferl() -> Any:
     return pufferl
 
 
-def puffer_env(n_envs: int, noop: bool, buf: Any = None, seed: int = 0) -> Any:
+def puffer_env(n_envs: int, noop: bool, buf: Any = None, seed: int = 0,
+               kernel_threads: int = 1) -> Any:
     """The batch as one native ``PufferEnv`` of ``n_envs`` agents: the env writes each
     step's arrays into PufferLib's buffers (shared memory in a worker process), ends reset
     within the step (SAME_STEP: the next episode's first observation, the ended one's
@@ -341,8 +344,10 @@ def puffer_env(n_envs: int, noop: bool, buf: Any = None, seed: int = 0) -> Any:
 
     class HighwayPufferEnv(pufferlib.PufferEnv):
         def __init__(self) -> None:
+            config = {"highway": {"kernel_threads": kernel_threads}} \
+                if kernel_threads > 1 else None
             self.vector = NoopVecEnv(n_envs) if noop else HighwayLoopBehaviorVectorEnv(
-                n_envs, autoreset_mode=AutoresetMode.SAME_STEP)
+                n_envs, config, autoreset_mode=AutoresetMode.SAME_STEP)
             self.single_observation_space = self.vector.single_observation_space
             self.single_action_space = self.vector.single_action_space
             self.num_agents = n_envs
@@ -368,13 +373,14 @@ def puffer_env(n_envs: int, noop: bool, buf: Any = None, seed: int = 0) -> Any:
 
 
 def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int,
-                   workers: int = 0) -> float:
+                   workers: int = 0, kernel_threads: int = 1) -> float:
     """PufferLib's PPO trainer (``PuffeRL``: ``evaluate()`` fills ``batch_size`` samples,
     ``train()`` runs ``update_epochs x batch_size / minibatch_size`` minibatch steps) with
     the project's hyperparameters, the policy SB3's MlpPolicy's shape (separate 64 x 64
     tanh actor and critic). ``workers`` 0: the batch in this process (PufferLib's native
     vectorization); 2: ``pufferlib.vector.Multiprocessing``, two processes of E / 2 envs,
-    the trainer taking one worker's half while the other steps."""
+    the trainer taking one worker's half while the other steps. ``kernel_threads``: the
+    env's (in this process only)."""
     import tempfile
 
     import pufferlib.vector
@@ -393,7 +399,8 @@ def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int,
             backend=pufferlib.vector.Multiprocessing, num_envs=workers,
             num_workers=workers, batch_size=1)
     else:
-        vecenv = pufferlib.vector.make(lambda: puffer_env(n_envs, noop))
+        vecenv = pufferlib.vector.make(
+            lambda: puffer_env(n_envs, noop, kernel_threads=kernel_threads))
     width = hyper["policy_kwargs"]["net_arch"]
     n_obs = int(np.prod(vecenv.single_observation_space.shape))
     n_act = int(vecenv.single_action_space.n)
@@ -465,6 +472,10 @@ def pufferlib_pool_rate(n_envs: int, samples: int, noop: bool, threads: int) -> 
     return pufferlib_rate(n_envs, samples, noop, threads, workers=2)
 
 
+def pufferlib_kt2_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return pufferlib_rate(n_envs, samples, noop, threads, kernel_threads=2)
+
+
 def env_alone_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     return env_rate(n_envs, samples, 1)
 
@@ -478,33 +489,38 @@ CASES = {
     "sb3": (sb3_rate, False), "sb3-noop": (sb3_rate, True),
     "torchrl": (torchrl_rate, False), "torchrl-noop": (torchrl_rate, True),
     "pufferlib": (pufferlib_rate, False), "pufferlib-noop": (pufferlib_rate, True),
+    "pufferlib-kt2": (pufferlib_kt2_rate, False),
     "pufferlib-pool": (pufferlib_pool_rate, False),
     "pufferlib-pool-noop": (pufferlib_pool_rate, True),
     "rllib": (rllib_rate, False),
 }
 OPTIONAL = {"torchrl": "torchrl", "pufferlib": "pufferlib"}
 """Case prefix -> the module it needs (none is a project dependency)."""
-LEARNERS = ("sb3", "torchrl", "pufferlib", "pufferlib-pool")
-"""The learners whose bounds are printed when their case, no-op case and ``env`` ran."""
+BOUNDS = {
+    "sb3": ("sb3-noop", ("env",)),
+    "torchrl": ("torchrl-noop", ("env",)),
+    "pufferlib": ("pufferlib-noop", ("env", "env-kt2")),
+    "pufferlib-kt2": ("pufferlib-noop", ("env-kt2",)),
+    "pufferlib-pool": ("pufferlib-pool-noop", ("env",)),
+}
+"""Learner case -> (its no-op case, the env cases its bounds are printed against)."""
 
 
 def print_bounds(medians: dict[str, float]) -> None:
     """Each learner's end to end rate against its bounds (module docstring), from medians."""
-    envs = [case for case in ("env", "env-kt2") if case in medians]
-    rows = [learner for learner in LEARNERS
-            if learner in medians and f"{learner}-noop" in medians]
-    if not envs or not rows:
+    rows = [(learner, noop, env) for learner, (noop, envs) in BOUNDS.items() for env in envs
+            if learner in medians and noop in medians and env in medians]
+    if not rows:
         return
     print(f"\n{'learner':<16}{'env':>9}{'env':>9}{'learner':>9}{'sequential':>12}"
           f"{'overlap':>9}{'end to end':>12}{'/ seq.':>8}")
     print(f"{'':<16}{'case':>9}{'alone':>9}{'alone':>9}{'bound':>12}{'bound':>9}")
-    for learner in rows:
-        for env in envs:
-            alone, own = medians[env], medians[f"{learner}-noop"]
-            bound = sequential_bound(alone, own)
-            print(f"{learner:<16}{env:>9}{alone:>9,.0f}{own:>9,.0f}{bound:>12,.0f}"
-                  f"{min(alone, own):>9,.0f}{medians[learner]:>12,.0f}"
-                  f"{medians[learner] / bound:>8.2f}")
+    for learner, noop, env in rows:
+        alone, own = medians[env], medians[noop]
+        bound = sequential_bound(alone, own)
+        print(f"{learner:<16}{env:>9}{alone:>9,.0f}{own:>9,.0f}{bound:>12,.0f}"
+              f"{min(alone, own):>9,.0f}{medians[learner]:>12,.0f}"
+              f"{medians[learner] / bound:>8.2f}")
 
 
 def puffer_importable() -> bool:
