@@ -297,6 +297,10 @@ def _puff_advantage_kernel() -> Any:
 
 _PUFFER_LIBRARY: list[Any] = []
 
+COLLECTION_SHARE: dict[tuple[bool, int, int], list[float]] = {}
+"""PuffeRL's ``evaluate()`` (env, policy forward, copies) as a share of the timed wall, per
+(noop, workers, kernel_threads) and round; the rest is ``train()``, the update."""
+
 
 def import_pufferl() -> Any:
     """``pufferlib.pufferl`` with its PPO advantage op available on CPU (see the module
@@ -451,11 +455,16 @@ def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int,
         trainer.train()
         started = time.perf_counter()
         done_samples = 0
+        collecting = 0.0
         while done_samples < samples:
+            tick = time.perf_counter()
             trainer.evaluate()
+            collecting += time.perf_counter() - tick
             trainer.train()
             done_samples += rollout
         wall = time.perf_counter() - started
+        COLLECTION_SHARE.setdefault((noop, workers, kernel_threads), []).append(
+            collecting / wall)
     finally:
         trainer.utilization.stop()
         vecenv.close()
@@ -601,6 +610,11 @@ def main() -> None:
         ratio = f"{med / base:.2f}" if base else "-"
         print(f"{case:<20}{min(values):>10,.0f}{med:>10,.0f}{max(values):>10,.0f}{ratio:>8}")
     print_bounds({case: statistics.median(values) for case, values in rates.items()})
+    for (noop, workers, threads), shares in COLLECTION_SHARE.items():
+        name = f"pufferlib{'-pool' if workers else ''}{'-kt2' if threads > 1 else ''}" \
+               f"{'-noop' if noop else ''}"
+        print(f"{name}: collection (evaluate) {statistics.median(shares):.0%} of the wall, "
+              f"the update (train) the rest (median of {len(shares)} rounds)")
     print(f"load average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
