@@ -11,6 +11,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 import bench_learners
+import learners_pufferlib
 
 VALUES = [1.0, 2.0, 3.0, 4.0]
 REWARDS = [0.0, 1.0, 1.0, 1.0]
@@ -41,7 +42,7 @@ def test_sequential_bound() -> None:
 
 def test_puff_advantage_known_answer() -> None:
     values, rewards, dones, importance, advantages = _rows()
-    bench_learners.puff_advantage(values, rewards, dones, importance, advantages,
+    learners_pufferlib.puff_advantage(values, rewards, dones, importance, advantages,
                                   GAMMA, LAM, 1.0, 1.0)
     np.testing.assert_array_equal(advantages, EXPECTED)
 
@@ -51,7 +52,7 @@ def test_puff_advantage_as_pufferlibs_op() -> None:
     the benchmark registers), when PufferLib is installed."""
     pytest.importorskip("pufferlib")
     torch = pytest.importorskip("torch")
-    pufferl = bench_learners.import_pufferl()
+    pufferl = learners_pufferlib.import_pufferl()
     values, rewards, dones, importance, advantages = (torch.from_numpy(a) for a in _rows())
     out = pufferl.compute_puff_advantage(values, rewards, dones, importance, advantages,
                                          GAMMA, LAM, 1.0, 1.0)
