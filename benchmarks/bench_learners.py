@@ -12,17 +12,38 @@ samples after a warm-up rollout:
 * ``torchrl``: torchrl's ``ClipPPOLoss`` and ``GAE`` in a plain loop over the batched env
   (no collector: the env already is a batch of numpy arrays);
 * ``rllib``: RLlib PPO as ``training/`` builds it (``benchmarks/bench_ray.py``'s case);
+* ``pufferlib``: PufferLib's own PPO trainer (``pufferlib.pufferl.PuffeRL``, pufferlib-core
+  3.0.23) over the batch as one native ``PufferEnv`` of E agents (no per-env Python);
+  ``pufferlib-pool``: the same trainer over PufferLib's ``Multiprocessing`` vector env,
+  two worker processes of E / 2 envs each and a batch of one worker, so one half of the
+  batch steps while the trainer runs the policy on the other (its env pool: collection
+  overlapped with inference; PuffeRL still alternates collection and update);
+  ``pufferlib-kt2``: ``pufferlib`` with the env's kernels on two threads (the learner
+  idles while the env steps, so the second core is free for them);
 * each ``*-noop`` case: the same learner on a no-op env of the same spaces (zeros for
-  observations, no episode end): the learner's own cost, its ceiling on this machine.
+  observations, no episode end): the learner's own cost, its ceiling on this machine;
+* ``env``, ``env-kt2``: the env alone, random actions on the native batch, its kernels on
+  one thread and on two (the behavior env's ``highway.kernel_threads: 2``).
 
 The rate printed is min/median/max over ``--rounds`` rounds (rounds interleave the cases, so
-the shared machine's load hits them alike), with the ratio of medians to ``sb3``.
+the shared machine's load hits them alike), with the ratio of medians to ``sb3``. Then the
+bounds, from the medians: a learner that alternates collection and update spends
+1/env + 1/learner seconds per sample, so it cannot beat 1 / (1/env + 1/learner) (the
+*sequential bound*); one that overlaps them on two cores is bounded by min(env, learner).
+
+PufferLib is not a project dependency; its cases are skipped with the reason printed when
+it does not import. pufferlib-core 3.0.23's wheel needs torch 2.9.0 and CUDA for its
+compiled ``_C`` (the PPO advantage kernel), so install it with ``--no-deps`` (plus
+``psutil pyro-ppl pyro-api opt_einsum rich_argparse``, also ``--no-deps``, keeping torch
+2.13.0 CPU); :func:`puff_advantage` here is that kernel's C++ CPU loop ported to numba and
+registered under the same op name, so PuffeRL runs unchanged.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib.util
+import os
 import statistics
 import sys
 import time
@@ -35,49 +56,38 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import train
 
-ENV_ID = "sdc_gym/HighwayLoopBehavior-v0"
-
-
-OVERRIDES: dict[str, Any] = {}
-"""``--batch-size`` and ``--n-steps`` from the command line, over the project's values."""
+from learner_settings import ENV_ID, OVERRIDES, NoopVecEnv, ppo_settings
+from learners_pufferlib import COLLECTION_SHARE, puffer_importable
 
 
-def ppo_settings(n_envs: int) -> dict[str, Any]:
-    """The project's PPO hyperparameters, ``n_steps`` rescaled so a rollout holds as many
-    samples as the project's (n_envs x n_steps of the config)."""
-    hyper = train.load_hyperparams("ppo", ENV_ID, "sb3")
-    rollout = int(hyper.pop("n_envs")) * int(hyper["n_steps"])
-    hyper.pop("timesteps", None)
-    hyper["n_steps"] = max(1, rollout // n_envs)
-    hyper.update(OVERRIDES)
-    return hyper
+def sequential_bound(env_rate: float, learner_rate: float) -> float:
+    """Samples/s of a learner that alternates collection and update: each sample costs
+    the env's time plus the learner's, ``1 / (1/env + 1/learner)``."""
+    return 1.0 / (1.0 / env_rate + 1.0 / learner_rate)
 
 
-class NoopVecEnv:
-    """A stand-in batch with the env's spaces: zero observations, zero rewards, no ends."""
+def env_rate(n_envs: int, samples: int, kernel_threads: int) -> float:
+    """The env alone: random discrete actions on the native batch (SAME_STEP autoreset, as
+    :class:`~sdc_gym.envs.sb3.SB3VecEnv` runs it), after a warm-up of 64 steps."""
+    from gymnasium.vector import AutoresetMode
 
-    def __init__(self, num_envs: int) -> None:
-        from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
+    from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
 
-        probe = HighwayLoopBehaviorVectorEnv(1)
-        self.single_observation_space = probe.single_observation_space
-        self.single_action_space = probe.single_action_space
-        probe.close()
-        self.num_envs = num_envs
-        self._obs = np.zeros((num_envs, *self.single_observation_space.shape), np.float32)
-        self._zeros = np.zeros(num_envs, np.float64)
-        self._false = np.zeros(num_envs, bool)
-
-    def reset(self, seed: Any = None) -> tuple[np.ndarray, dict]:
-        return self._obs, {}
-
-    def step(self, actions: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        return self._obs, self._zeros, self._false, self._false, {}
-
-    def close(self) -> None:
-        pass
+    config = {"highway": {"kernel_threads": kernel_threads}} if kernel_threads > 1 else None
+    env = HighwayLoopBehaviorVectorEnv(n_envs, config, autoreset_mode=AutoresetMode.SAME_STEP)
+    steps = max(1, samples // n_envs)
+    actions = np.random.default_rng(0).integers(0, env.single_action_space.n,
+                                                (steps + 64, n_envs))
+    env.reset(seed=0)
+    for t in range(64):
+        env.step(actions[t])
+    started = time.perf_counter()
+    for t in range(64, steps + 64):
+        env.step(actions[t])
+    wall = time.perf_counter() - started
+    env.close()
+    return steps * n_envs / wall
 
 
 def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
@@ -207,11 +217,67 @@ def rllib_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     return rllib_samples_per_second(samples, 1)
 
 
+def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int, **kwargs: Any) -> float:
+    from learners_pufferlib import pufferlib_rate as rate
+
+    return rate(n_envs, samples, noop, threads, **kwargs)
+
+
+def pufferlib_pool_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return pufferlib_rate(n_envs, samples, noop, threads, workers=2)
+
+
+def pufferlib_kt2_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return pufferlib_rate(n_envs, samples, noop, threads, kernel_threads=2)
+
+
+def env_alone_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(n_envs, samples, 1)
+
+
+def env_kt2_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(n_envs, samples, 2)
+
+
 CASES = {
+    "env": (env_alone_rate, False), "env-kt2": (env_kt2_rate, False),
     "sb3": (sb3_rate, False), "sb3-noop": (sb3_rate, True),
     "torchrl": (torchrl_rate, False), "torchrl-noop": (torchrl_rate, True),
+    "pufferlib": (pufferlib_rate, False), "pufferlib-noop": (pufferlib_rate, True),
+    "pufferlib-kt2": (pufferlib_kt2_rate, False),
+    "pufferlib-pool": (pufferlib_pool_rate, False),
+    "pufferlib-pool-noop": (pufferlib_pool_rate, True),
     "rllib": (rllib_rate, False),
 }
+OPTIONAL = {"torchrl": "torchrl", "pufferlib": "pufferlib"}
+"""Case prefix -> the module it needs (none is a project dependency)."""
+BOUNDS = {
+    "sb3": ("sb3-noop", ("env",)),
+    "torchrl": ("torchrl-noop", ("env",)),
+    "pufferlib": ("pufferlib-noop", ("env", "env-kt2")),
+    "pufferlib-kt2": ("pufferlib-noop", ("env-kt2",)),
+    "pufferlib-pool": ("pufferlib-pool-noop", ("env",)),
+}
+"""Learner case -> (its no-op case, the env cases its bounds are printed against)."""
+
+
+def print_bounds(medians: dict[str, float]) -> None:
+    """Each learner's end to end rate against its bounds (module docstring), from medians."""
+    rows = [(learner, noop, env) for learner, (noop, envs) in BOUNDS.items() for env in envs
+            if learner in medians and noop in medians and env in medians]
+    if not rows:
+        return
+    print(f"\n{'learner':<16}{'env':>9}{'env':>9}{'learner':>9}{'sequential':>12}"
+          f"{'overlap':>9}{'end to end':>12}{'/ seq.':>8}")
+    print(f"{'':<16}{'case':>9}{'alone':>9}{'alone':>9}{'bound':>12}{'bound':>9}")
+    for learner, noop, env in rows:
+        alone, own = medians[env], medians[noop]
+        bound = sequential_bound(alone, own)
+        print(f"{learner:<16}{env:>9}{alone:>9,.0f}{own:>9,.0f}{bound:>12,.0f}"
+              f"{min(alone, own):>9,.0f}{medians[learner]:>12,.0f}"
+              f"{medians[learner] / bound:>8.2f}")
+
+
 
 
 def main() -> None:
@@ -222,8 +288,10 @@ def main() -> None:
     parser.add_argument("--rounds", type=int, default=3)
     parser.add_argument("--threads", type=int, default=1, help="torch threads per case")
     parser.add_argument("--cases", default=None,
-                        help=f"comma-separated, of {', '.join(CASES)} (default: sb3, "
-                             "sb3-noop, and torchrl, torchrl-noop when torchrl imports)")
+                        help=f"comma-separated, of {', '.join(CASES)} (default: env, "
+                             "env-kt2, sb3, sb3-noop, torchrl, torchrl-noop, pufferlib, "
+                             "pufferlib-noop; the torchrl and pufferlib ones skipped, with "
+                             "the reason printed, when they do not import)")
     parser.add_argument("--batch-size", type=int, default=None,
                         help="PPO minibatch (default: the project's)")
     parser.add_argument("--n-steps", type=int, default=None,
@@ -238,27 +306,27 @@ def main() -> None:
             OVERRIDES[name] = value
     have_torchrl = importlib.util.find_spec("torchrl") is not None
     if args.cases is None:
-        args.cases = "sb3,sb3-noop" + (",torchrl,torchrl-noop" if have_torchrl else "")
-        if not have_torchrl:
-            print("torchrl is not installed (not a project dependency): its cases are left "
-                  "out; see --cases")
+        args.cases = "env,env-kt2,sb3,sb3-noop,torchrl,torchrl-noop,pufferlib,pufferlib-noop"
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     for case in cases:
         if case not in CASES:
             parser.error(f"--cases: unknown case {case!r}; choices: {', '.join(CASES)}")
-    missing = [case for case in cases if case.startswith("torchrl")] \
-        if not have_torchrl else []
-    if missing:  # not among the project's dependencies: a benchmark-only comparison
-        parser.error(f"--cases {','.join(missing)}: needs torchrl, which the project does "
-                     "not install (pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 "
-                     "pyvers, into a separate --target on PYTHONPATH, keeps torch 2.13.0), "
-                     "or leave them out: --cases sb3,sb3-noop,rllib")
+    if "torchrl" in args.cases and not have_torchrl:
+        print("skipping the torchrl cases: torchrl is not installed (not a project "
+              "dependency; pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 pyvers, "
+              "into a separate --target on PYTHONPATH, keeps torch 2.13.0)")
+    if "pufferlib" in args.cases and not puffer_importable():
+        print(f"skipping the pufferlib cases: {puffer_importable.reason}")
+    cases = [case for case in cases
+             if not (case.startswith("torchrl") and not have_torchrl)
+             and not (case.startswith("pufferlib") and not puffer_importable())]
     warnings.filterwarnings("ignore")
     hyper = ppo_settings(args.envs)
     print(f"{ENV_ID}, E={args.envs}, PPO: n_steps={hyper['n_steps']} per env "
           f"({hyper['n_steps'] * args.envs} per rollout), batch_size={hyper['batch_size']}, "
           f"n_epochs={hyper['n_epochs']}, net_arch={hyper['policy_kwargs']['net_arch']}; "
-          f"{args.samples:,} samples per case, torch threads {args.threads}")
+          f"{args.samples:,} samples per case, torch threads {args.threads}; load average "
+          f"{', '.join(f'{x:.1f}' for x in os.getloadavg())}")
     rates: dict[str, list[float]] = {case: [] for case in cases}
     for round_ in range(args.rounds):
         for case in cases:
@@ -266,11 +334,18 @@ def main() -> None:
             rates[case].append(fn(args.envs, args.samples, noop, args.threads))
             print(f"  round {round_ + 1} {case}: {rates[case][-1]:,.0f} samples/s", flush=True)
     base = statistics.median(rates["sb3"]) if "sb3" in rates else None
-    print(f"\n{'learner':<14}{'min':>10}{'median':>10}{'max':>10}{'x sb3':>8}")
+    print(f"\n{'case':<20}{'min':>10}{'median':>10}{'max':>10}{'x sb3':>8}")
     for case, values in rates.items():
         med = statistics.median(values)
         ratio = f"{med / base:.2f}" if base else "-"
-        print(f"{case:<14}{min(values):>10,.0f}{med:>10,.0f}{max(values):>10,.0f}{ratio:>8}")
+        print(f"{case:<20}{min(values):>10,.0f}{med:>10,.0f}{max(values):>10,.0f}{ratio:>8}")
+    print_bounds({case: statistics.median(values) for case, values in rates.items()})
+    for (noop, workers, threads), shares in COLLECTION_SHARE.items():
+        name = f"pufferlib{'-pool' if workers else ''}{'-kt2' if threads > 1 else ''}" \
+               f"{'-noop' if noop else ''}"
+        print(f"{name}: collection (evaluate) {statistics.median(shares):.0%} of the wall, "
+              f"the update (train) the rest (median of {len(shares)} rounds)")
+    print(f"load average at the end: {', '.join(f'{x:.1f}' for x in os.getloadavg())}")
 
 
 if __name__ == "__main__":
