@@ -57,7 +57,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-from learner_settings import ENV_ID, OVERRIDES, NoopVecEnv, ppo_settings
+from learner_settings import ENV_ID, OVERRIDES, NoopVecEnv, ppo_settings, tanh_mlp
 from learners_pufferlib import COLLECTION_SHARE, puffer_importable
 
 
@@ -136,12 +136,7 @@ def torchrl_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     n_act = int(env.single_action_space.n)
 
     def mlp(out: int) -> nn.Sequential:
-        layers: list[nn.Module] = []
-        size = n_obs
-        for w in width:
-            layers += [nn.Linear(size, w), nn.Tanh()]
-            size = w
-        return nn.Sequential(*layers, nn.Linear(size, out))
+        return tanh_mlp(n_obs, width, out)
 
     actor = ProbabilisticActor(TensorDictModule(mlp(n_act), ["observation"], ["logits"]),
                                in_keys=["logits"],

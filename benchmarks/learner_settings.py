@@ -54,3 +54,16 @@ class NoopVecEnv:
 
     def close(self) -> None:
         pass
+
+
+def tanh_mlp(inputs: int, width: list[int], outputs: int) -> Any:
+    """SB3's default MLP shape for PPO's actor or critic: ``Linear`` + ``Tanh`` per hidden
+    width, then a linear head (the same network in every learner's case)."""
+    from torch import nn
+
+    layers: list[nn.Module] = []
+    size = inputs
+    for hidden in width:
+        layers += [nn.Linear(size, hidden), nn.Tanh()]
+        size = hidden
+    return nn.Sequential(*layers, nn.Linear(size, outputs))

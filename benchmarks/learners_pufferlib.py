@@ -22,7 +22,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from learner_settings import ENV_ID, NoopVecEnv, ppo_settings
+from learner_settings import ENV_ID, NoopVecEnv, ppo_settings, tanh_mlp
 
 
 def puff_advantage(values: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
@@ -182,12 +182,7 @@ def pufferlib_rate(n_envs: int, samples: int, noop: bool, threads: int,
     n_act = int(vecenv.single_action_space.n)
 
     def mlp(out: int) -> nn.Sequential:
-        layers: list[nn.Module] = []
-        size = n_obs
-        for w in width:
-            layers += [nn.Linear(size, w), nn.Tanh()]
-            size = w
-        return nn.Sequential(*layers, nn.Linear(size, out))
+        return tanh_mlp(n_obs, width, out)
 
     class Policy(nn.Module):
         def __init__(self) -> None:
