@@ -28,7 +28,9 @@ off-policy algorithms, the replay buffer, every ``--checkpoint-every`` steps),
 ``best_model.zip`` (best mean evaluation reward so far), ``evaluations.npz``,
 ``validations.csv`` and ``best_validation_model.zip`` (with ``validation``: each result, and
 the model with the best eligible one: the highest mean mph, or the shortest mean lap, of
-the results without any incident),
+the results without any incident), ``averaged_model.zip`` (with ``averaging``: the policy's
+weights averaged from ``start`` env steps on, a sample every ``every``, uniformly or with
+``decay``: :mod:`sdc_training.weight_averaging`; also validated when validation is on),
 ``replay_buffer.pkl`` (DQN, SAC: the final buffer),
 ``tensorboard/`` (SB3's curves plus ``driving/``: incidents per episode by kind and in
 all, success, mean speed and distance per episode, and lap time from the episodes that
@@ -67,6 +69,7 @@ from sdc_gym.config import ConfigError
 from sdc_gym.validation.rules import Choice
 from sdc_gym.validation.run_config import (
     ALGORITHMS,
+    AVERAGING_DEFAULTS,
     EVAL_DEFAULTS,
     OFF_POLICY_ALGORITHMS,
     VALIDATION_DEFAULTS,
@@ -85,7 +88,7 @@ are stable-baselines3's (``--framework sb3``, the default)."""
 FRAMEWORKS = ("sb3", "rllib")
 HYPERPARAMS_DIR = packaged_config("hyperparams")  # configs/hyperparams, installed too
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
-            "framework", "validation"}
+            "framework", "validation", "averaging"}
 CHECKPOINT_EVERY = 10_000
 DEFAULT_TIMESTEPS = 100_000
 DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
@@ -126,6 +129,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                         help="env steps between validations: one lap per validation seed "
                              "(the run config's 'validation': seeds from 2000, 40 laps), "
                              "best_validation_model.zip and validations.csv (0: none)")
+    parser.add_argument("--average-every", type=int, default=None,
+                        help="env steps between samples of the weight average (the run "
+                             "config's 'averaging'; 0: none): averaged_model.zip at the end, "
+                             "scored by the validation laps too")
+    parser.add_argument("--average-start", type=int, default=None,
+                        help="env steps before the first sample of the weight average")
     parser.add_argument("--resume", action="store_true",
                         help="continue the run in --output from its newest intact checkpoint")
     parser.add_argument("--resume-without-buffer", action="store_true",
@@ -150,6 +159,9 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
         parser.error("--ray is for RLlib runs (--framework rllib); SB3 runs on this machine")
     if args.resume_without_buffer and not args.resume:
         parser.error("--resume-without-buffer goes with --resume")
+    if args.resume and (args.average_every is not None or args.average_start is not None):
+        parser.error("--average-every and --average-start are set when a run starts "
+                     "(its config.yaml keeps them): drop them with --resume")
     return args
 
 
@@ -275,6 +287,12 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
                   else dict(VALIDATION_DEFAULTS) if validation is None else validation)
     if args.validate_every is not None and isinstance(validation, dict):
         validation["every"] = args.validate_every
+    averaging = data.get("averaging")
+    averaging = ({**AVERAGING_DEFAULTS, **averaging} if isinstance(averaging, dict)
+                 else dict(AVERAGING_DEFAULTS) if averaging is None else averaging)
+    for key in ("every", "start"):
+        if getattr(args, f"average_{key}") is not None and isinstance(averaging, dict):
+            averaging[key] = getattr(args, f"average_{key}")
     config = {
         "env": env_id,
         "config": first_given(data.get("config"), {}),
@@ -288,6 +306,7 @@ def run_config(args: argparse.Namespace) -> dict[str, Any]:
         "hyperparams": hyper,
         "eval": evaluation,
         "validation": validation,
+        "averaging": averaging,
         "checkpoint_every": first_given(args.checkpoint_every, data.get("checkpoint_every"),
                                         CHECKPOINT_EVERY),
     }
@@ -322,6 +341,7 @@ def validate(config: dict[str, Any], source: str) -> None:
     try:
         check_run_config(config, source, registered=lambda env_id: env_id in gym.registry)
         check_validation(config, source)
+        check_averaging(config, source)
         if framework == "rllib":
             check_rllib_config(config, source)
         else:
@@ -352,6 +372,15 @@ def check_validation(config: dict[str, Any], source: str) -> None:
     if config["env"] not in LAP_SECTIONS:
         raise ConfigError(f"{source}: config key 'validation.every' must be 0 for env "
                           f"{config['env']}: validation laps run on {sorted(LAP_SECTIONS)}, "
+                          f"got {every}")
+
+
+def check_averaging(config: dict[str, Any], source: str) -> None:
+    """Weight averaging (run config key ``averaging``) runs in SB3 runs."""
+    every = (config.get("averaging") or {}).get("every", 0)
+    if every and config.get("framework", "sb3") != "sb3":
+        raise ConfigError(f"{source}: config key 'averaging.every' must be 0 with framework "
+                          f"{config['framework']} (weight averaging runs in SB3 runs), "
                           f"got {every}")
 
 
@@ -434,6 +463,16 @@ def main(argv: list[str] | None = None) -> Path:
     every = max(int(config["checkpoint_every"]) // config["n_envs"], 1)
     callbacks = [ckpt.checkpoint_callback(every, checkpoints, config["algo"], off_policy),
                  driving_callback()]
+    averaging = config.get("averaging") or AVERAGING_DEFAULTS
+    average = None
+    if averaging["every"]:
+        from sdc_training.weight_averaging import averaging_callback
+
+        callbacks.append(averaging_callback(
+            model, checkpoints, every=int(averaging["every"]), start=int(averaging["start"]),
+            decay=averaging["decay"], checkpoint_every=every,
+            resume_steps=None if point is None else point.steps))
+        average = callbacks[-1].average
     evaluation = config["eval"]
     if evaluation["every"]:
         # Evaluation runs in this process; SB3 warns that its vec env class differs.
@@ -450,7 +489,8 @@ def main(argv: list[str] | None = None) -> Path:
         callbacks.append(validation_callback(
             config["env"], config["config"], args.output,
             every=max(int(validation["every"]) // config["n_envs"], 1),
-            episodes=int(validation["episodes"]), seed=int(validation["seed"])))
+            episodes=int(validation["episodes"]), seed=int(validation["seed"]),
+            average=average))
     if not args.no_progress:
         callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps
@@ -461,6 +501,11 @@ def main(argv: list[str] | None = None) -> Path:
     if off_policy:  # with the final model, so that a longer run can continue from here
         ckpt.save_replay_buffer(model, args.output / "replay_buffer.pkl")
     ckpt.save_model(model, final)
+    if average is not None and average.count:
+        from sdc_training.weight_averaging import AVERAGED_NAME, save_averaged_model
+
+        save_averaged_model(model, average, args.output / AVERAGED_NAME)
+        print(f"weight average of {average.count} samples: {args.output / AVERAGED_NAME}")
     vec_env.close()
     print(f"trained {model.num_timesteps} steps; model: {final}")
     return final

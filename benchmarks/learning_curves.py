@@ -49,18 +49,15 @@ def eval_curve(run: Path, tag: str = EVAL_TAG) -> dict[int, float]:
 
 
 def validation_curve(run: Path) -> dict[int, float]:
-    """``{samples: mean mph}`` of one run folder's ``validations.csv`` (the last row per
-    step when a step was validated twice, e.g. after a resume)."""
-    import csv
-
-    from sdc_training.validation_laps import CSV_NAME
+    """``{samples: mean mph}`` of one run folder's ``validations.csv``, its online weights
+    (the last row per step when a step was validated twice, e.g. after a resume)."""
+    from sdc_training.validation_laps import CSV_NAME, read_rows
 
     path = run / CSV_NAME
     if not path.is_file():
         raise SystemExit(f"{run}: no {CSV_NAME} (train with --validate-every, or run "
                          f"benchmarks/validate_policies.py --record {run} on its checkpoints)")
-    with path.open(encoding="utf-8", newline="") as handle:
-        return {int(row["timesteps"]): float(row["value"]) for row in csv.DictReader(handle)}
+    return {int(row["timesteps"]): float(row["value"]) for row in read_rows(run)}
 
 
 CURVES = {"eval": eval_curve, "validation": validation_curve}

@@ -176,27 +176,47 @@ def read_best(folder: Path) -> LapScore | None:
     return best
 
 
-def append_row(folder: Path, timesteps: int, score: LapScore) -> None:
-    """Add one result to ``validations.csv``, rewriting it atomically."""
+def append_row(folder: Path, timesteps: int, score: LapScore,
+               weights: str = "online") -> None:
+    """Add one result to ``validations.csv``, rewriting it atomically; ``weights`` names
+    the model scored: ``online`` (the trained weights) or ``averaged``
+    (:mod:`sdc_training.weight_averaging`)."""
     from sdc_evaluation.files import atomic_write_text
 
     path = folder / CSV_NAME
-    old = path.read_text(encoding="utf-8") if path.is_file() else ""
-    fields = ["timesteps", "value", "low", "high", "higher_is_better", "eligible",
-              *score.counts]
+    rows = []
+    if path.is_file():
+        with path.open(encoding="utf-8", newline="") as handle:
+            rows = list(csv.DictReader(handle))
+    rows.append({"timesteps": timesteps, "weights": weights, "value": score.value,
+                 "low": score.low, "high": score.high,
+                 "higher_is_better": score.higher_is_better, "eligible": score.eligible,
+                 **score.counts})
+    fields = list(dict.fromkeys(key for row in rows for key in row))  # old files lack some
     out = io.StringIO()
-    writer = csv.DictWriter(out, fieldnames=fields, lineterminator="\n")
-    if not old:
-        writer.writeheader()
-    writer.writerow({"timesteps": timesteps, "value": score.value, "low": score.low,
-                     "high": score.high, "higher_is_better": score.higher_is_better,
-                     "eligible": score.eligible, **score.counts})
-    atomic_write_text(path, old + out.getvalue())
+    writer = csv.DictWriter(out, fieldnames=fields, lineterminator="\n", restval="")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow({"weights": "online", **row} if not row.get("weights") else row)
+    atomic_write_text(path, out.getvalue())
+
+
+def read_rows(folder: Path, weights: str = "online") -> list[dict[str, str]]:
+    """The rows of ``folder``'s ``validations.csv`` that scored ``weights`` (files from
+    before the column hold only ``online`` rows)."""
+    with (folder / CSV_NAME).open(encoding="utf-8", newline="") as handle:
+        return [row for row in csv.DictReader(handle)
+                if row.get("weights", "online") == weights]
 
 
 def validation_callback(env_id: str, config: Mapping[str, Any], folder: Path, every: int,
-                        episodes: int, seed: int, verbose: bool = True) -> Any:
-    """An SB3 callback validating the model every ``every`` callback calls (batch steps)."""
+                        episodes: int, seed: int, verbose: bool = True,
+                        average: Any = None) -> Any:
+    """An SB3 callback validating the model every ``every`` callback calls (batch steps).
+
+    With ``average`` (a :class:`sdc_training.weight_averaging.WeightAverage` of the
+    policy) its averaged weights are scored too, once they hold a sample, and either kind
+    of weights can become ``best_validation_model.zip``."""
     from stable_baselines3.common.callbacks import BaseCallback
 
     from sdc_agents.checkpoints import save_model
@@ -214,21 +234,28 @@ def validation_callback(env_id: str, config: Mapping[str, Any], folder: Path, ev
                 return True
             if self.envs is None:
                 self.envs = make_lap_envs(env_id, config, episodes)
+            self.score("online")
+            if average is not None and average.count:
+                with average.applied(self.model.policy):
+                    self.score("averaged")
+            return True
+
+        def score(self, weights: str) -> None:
             score, _ = validate_model(self.model, self.envs, env_id, seed)
-            self.logger.record("validation/value", score.value)
+            prefix = "validation" if weights == "online" else f"validation_{weights}"
+            self.logger.record(f"{prefix}/value", score.value)
             for name, count in score.counts.items():
-                self.logger.record(f"validation/{name}", count)
-            append_row(folder, self.num_timesteps, score)
+                self.logger.record(f"{prefix}/{name}", count)
+            append_row(folder, self.num_timesteps, score, weights)
             if score.beats(self.best):
                 self.best = score
                 save_model(self.model, folder / BEST_NAME)
             if verbose:
                 unit = "mph" if score.higher_is_better else "s per lap"
-                print(f"Validation num_timesteps={self.num_timesteps}: {episodes} laps from "
-                      f"seed {seed}, {score.value:.2f} {unit} [{score.low:.2f}, "
-                      f"{score.high:.2f}], {score.counts}"
+                print(f"Validation num_timesteps={self.num_timesteps} ({weights} weights): "
+                      f"{episodes} laps from seed {seed}, {score.value:.2f} {unit} "
+                      f"[{score.low:.2f}, {score.high:.2f}], {score.counts}"
                       f"{' (best so far)' if self.best is score else ''}", flush=True)
-            return True
 
         def _on_training_end(self) -> None:
             if self.envs is not None:

@@ -2,12 +2,12 @@
 
 A run config (YAML, ``train.py --config``) has the keys of :data:`RUN_RULES` plus ``env``
 (a registered id) and ``config`` (its env config, a mapping); ``eval`` is a mapping with
-the keys of :data:`EVAL_DEFAULTS`, ``validation`` (optional) one with the keys of
-:data:`VALIDATION_DEFAULTS`. Hyperparameters (``configs/hyperparams/<algo>.yaml``
-and ``--hp KEY=VALUE``) must be parameters of the stable-baselines3 algorithm's
-constructor, of the type its annotation says (a float where it takes ``float | Schedule``:
-YAML cannot give a function), finite, and in range for the common ones
-(:data:`HYPERPARAM_RULES`). Errors are :class:`~sdc_gym.config.ConfigError` naming the
+the keys of :data:`EVAL_DEFAULTS`, ``validation`` and ``averaging`` (optional) ones with
+the keys of :data:`VALIDATION_DEFAULTS` and :data:`AVERAGING_DEFAULTS`. Hyperparameters
+(``configs/hyperparams/<algo>.yaml`` and ``--hp KEY=VALUE``) must be parameters of the
+stable-baselines3 algorithm's constructor, of the type its annotation says (a float where
+it takes ``float | Schedule``: YAML cannot give a function), finite, and in range for the
+common ones (:data:`HYPERPARAM_RULES`). Errors are :class:`~sdc_gym.config.ConfigError` naming the
 key, the value and what is valid.
 """
 
@@ -31,6 +31,10 @@ EVAL_DEFAULTS: Final = {"every": 50_000, "episodes": 4, "seed": 10_000}
 VALIDATION_DEFAULTS: Final = {"every": 0, "episodes": 40, "seed": 2000}
 """One lap per validation seed every ``every`` env steps (0: never), as one batch
 (``sdc_training.validation_laps``): model selection apart from the held-out seeds."""
+AVERAGING_DEFAULTS: Final = {"every": 0, "start": 0, "decay": None}
+"""A running average of the policy's weights, a sample every ``every`` env steps (0: no
+averaging) from ``start`` on; ``decay`` None: their uniform mean (SWA), else an
+exponential one (``sdc_training.weight_averaging``)."""
 SEED_LIMIT: Final = 2**32 - 1  # numpy's and SB3's seeds are 32-bit
 MAX_N_ENVS: Final = 1024  # processes or a batch; memory and time bound it long before
 MAX_TIMESTEPS: Final = 10**12
@@ -48,6 +52,11 @@ RUN_RULES: Final[dict[str, Rule]] = {
     "validation.episodes": Number(2, MAX_N_ENVS, integer=True,
                                   unit="laps, one batch; 2 at least for an interval"),
     "validation.seed": Number(0, SEED_LIMIT, integer=True, unit="the first validation seed"),
+    "averaging.every": Number(0, MAX_TIMESTEPS, integer=True,
+                              unit="env steps between samples; 0: no averaging"),
+    "averaging.start": Number(0, MAX_TIMESTEPS, integer=True, unit="env steps"),
+    "averaging.decay": Number(0.0, 1.0, low_open=True, high_open=True, optional=True,
+                              unit="None: the uniform mean"),
 }
 HYPERPARAM_RULES: Final[dict[str, Rule]] = {
     "learning_rate": Number(0.0, 1.0, low_open=True),
@@ -90,8 +99,13 @@ def check_run_config(config: Mapping[str, Any], owner: str, registered: Any) -> 
     if not isinstance(validation, Mapping) or set(validation) - set(VALIDATION_DEFAULTS):
         raise ConfigError(f"{owner}: config key 'validation' must be a mapping with keys of "
                           f"{sorted(VALIDATION_DEFAULTS)}, got {excerpt(validation)}")
+    averaging = config.get("averaging", AVERAGING_DEFAULTS)
+    if not isinstance(averaging, Mapping) or set(averaging) - set(AVERAGING_DEFAULTS):
+        raise ConfigError(f"{owner}: config key 'averaging' must be a mapping with keys of "
+                          f"{sorted(AVERAGING_DEFAULTS)}, got {excerpt(averaging)}")
     for key, rule in RUN_RULES.items():
-        if key.startswith("validation.") and "validation" not in config:
+        section = key.partition(".")[0]
+        if section in ("validation", "averaging") and section not in config:
             continue  # a run from before the key existed
         node: Any = config
         for part in key.split("."):
