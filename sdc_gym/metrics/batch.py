@@ -18,6 +18,7 @@ from numpy.typing import NDArray
 
 from sdc_gym.metrics import kernel
 from sdc_gym.metrics.incidents import INCIDENT_KINDS, Incident, IncidentRules
+from sdc_gym.packed_rows import PackedRows
 from sdc_gym.units import MPS_TO_MPH
 
 FloatArray = NDArray[np.float64]
@@ -28,7 +29,7 @@ _NO_EXTRA = np.zeros((0, 4))
 _NO_CONTACTS = np.full((1, 1), -1, dtype=np.int64)
 
 
-class DrivingMetricsBatch:
+class DrivingMetricsBatch(PackedRows):
     """Incidents, laps and distance statistics of ``envs`` ego cars (one per env).
 
     Args:
@@ -47,6 +48,7 @@ class DrivingMetricsBatch:
 
     FLOATS = kernel.FLOAT_ROWS
     INTS = kernel.INT_ROWS
+    PACKED_ROWS = (("_floats", "FLOATS"), ("_ints", "INTS"))
 
     def __init__(self, rules: IncidentRules, loop_length: float, envs: int,
                  extra_kinds: tuple[str, ...] = ()) -> None:
@@ -77,10 +79,7 @@ class DrivingMetricsBatch:
         self._bands = np.array(rules.straddle_bands, dtype=np.float64).reshape(-1, 2)
         self._floats = np.zeros((len(self.FLOATS), envs))
         self._ints = np.zeros((len(self.INTS), envs), dtype=np.int64)
-        for row, name in enumerate(self.FLOATS):
-            setattr(self, name, self._floats[row])
-        for row, name in enumerate(self.INTS):
-            setattr(self, name, self._ints[row])
+        self._bind_rows()
         self.ready = np.zeros(envs, dtype=bool)
         self._all_ready = False
         # The three positions before the next sample (copies of the start after a reset):
@@ -93,6 +92,7 @@ class DrivingMetricsBatch:
         self._laps = np.zeros((0, 2))
 
     # ------------------------------------------------------------------ episode control
+
     def reset_at(self, env: int, x: float, y: float, s: float, d: float,
                  speed: float = 0.0) -> None:
         """Start env ``env``'s episode with the car at (x, y) / (s, d) moving at ``speed``.

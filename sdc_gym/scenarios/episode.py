@@ -23,7 +23,20 @@ from sdc_gym.scenarios.placement_checks import check_lanes, check_placements
 from sdc_gym.scenarios.runtime import ScenarioScript, ego_path, scenario_slots
 from sdc_gym.traffic.road_events import RoadEventRates
 
-CONFIG: Final = object()
+
+class _ConfigScenario:
+    """The type of :data:`CONFIG`: one instance, which copies and pickles as itself (an
+    ``object()`` sentinel would not: a deep-copied env would hold a stranger that its own
+    reset no longer recognises)."""
+
+    def __reduce__(self) -> str:
+        return "CONFIG"  # copy and pickle: the module's global of that name
+
+    def __repr__(self) -> str:
+        return "CONFIG"
+
+
+CONFIG: Final = _ConfigScenario()
 """``reset_at``'s default scenario: the one of the env's config (or none)."""
 
 

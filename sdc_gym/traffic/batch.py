@@ -21,6 +21,7 @@ decision instants. Until a batch holds such slots (``scripted``), none of this r
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -318,6 +319,15 @@ class TrafficBatch:
         count = plan_rounds(self.state.step, frames, self.config.decision_period, rows, begin,
                             end)
         return count, rows, begin, end
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        # A copy or an unpickled batch has generators of its own: ``rng_pointers`` are
+        # raw addresses into the original's, so a copy would draw from (and advance) the
+        # original's, or from freed memory once the original is gone. Point them anew.
+        self.__dict__.update(state)
+        for env, rng in enumerate(self.rngs):
+            if rng is not None:
+                self.rng_pointers[env] = generator_pointers(rng)
 
     def _use_generator(self, env: int, rng: np.random.Generator) -> None:
         if self.rngs[env] is not rng:

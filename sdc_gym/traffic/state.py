@@ -16,6 +16,8 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import NDArray
 
+from sdc_gym.packed_rows import PackedRows
+
 FloatArray = NDArray[np.float64]
 IntArray = NDArray[np.int64]
 
@@ -31,7 +33,7 @@ OBJECT = 1
 PARKED = 2
 
 
-class TrafficState:
+class TrafficState(PackedRows):
     """The arrays of a batch's traffic (see the module docstring).
 
     Per car, ``(envs, cars)``: ``ids`` (the fixed slots ``0..cars-1``: a respawned car
@@ -55,6 +57,9 @@ class TrafficState:
     latest ``ego_s``, ``ego_d``, ``ego_speed``.
     """
 
+    PACKED_ROWS: ClassVar[tuple[tuple[str, str], ...]] = (
+        ("car_floats", "CAR_FLOATS"), ("car_ints", "CAR_INTS"), ("env_ints", "ENV_INTS"),
+        ("env_floats", "ENV_FLOATS"))
     CAR_FLOATS: ClassVar[tuple[str, ...]] = (
         "length", "width", "half_length", "a_max", "tsab", "s", "d", "speed", "desired",
         "x", "y", "heading", "vx", "vy", "kappa", "acc", "half_acc", "omega", "phase",
@@ -125,11 +130,7 @@ class TrafficState:
         self.car_ints = np.zeros((len(self.CAR_INTS), envs, cars), dtype=np.int64)
         self.env_ints = np.zeros((len(self.ENV_INTS), envs), dtype=np.int64)
         self.env_floats = np.zeros((len(self.ENV_FLOATS), envs))
-        for block, names in ((self.car_floats, self.CAR_FLOATS), (self.car_ints, self.CAR_INTS),
-                             (self.env_ints, self.ENV_INTS),
-                             (self.env_floats, self.ENV_FLOATS)):
-            for row, name in enumerate(names):
-                setattr(self, name, block[row])
+        self._bind_rows()
         self.clear_rows(slice(None), lane_change_duration)
 
     @property
