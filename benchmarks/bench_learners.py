@@ -59,12 +59,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from learner_settings import ENV_ID, OVERRIDES, NoopVecEnv, ppo_settings, tanh_mlp
 from learners_pufferlib import COLLECTION_SHARE, puffer_importable
-
-
-def sequential_bound(env_rate: float, learner_rate: float) -> float:
-    """Samples/s of a learner that alternates collection and update: each sample costs
-    the env's time plus the learner's, ``1 / (1/env + 1/learner)``."""
-    return 1.0 / (1.0 / env_rate + 1.0 / learner_rate)
+from speed_targets import sequential_bound
 
 
 def env_rate(n_envs: int, samples: int, kernel_threads: int) -> float:

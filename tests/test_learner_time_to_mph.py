@@ -127,3 +127,12 @@ def test_optional_learners_are_skipped_with_their_install_line(monkeypatch) -> N
     assert "pip install --no-deps pufferlib-core" in ttm.skip_reason("pufferlib")
     assert "Ray is not installed" in ttm.skip_reason("rllib")
     assert ttm.skip_reason("sb3") is None
+
+
+def test_a_tiny_budget_still_trains_one_chunk() -> None:
+    clock = Clock()
+    learner = FakeLearner(clock)
+    result = ttm.race("fake", learner, scorer(clock, [40.0, 41.0, 50.0]), 42.0, 100,
+                      budget_s=0.5, clock=clock)
+    assert learner.chunks == 1 and len(result.curve) == 2
+    assert result.samples_per_s == pytest.approx(10.0)
