@@ -1,6 +1,6 @@
 """How fast can a lap go under the shield? A clairvoyant rollout planner's lap speed.
 
-    python benchmarks/study_behavior_ceiling.py --seeds 2000 --episodes 10 \
+    python benchmarks/study_behavior_ceiling.py --seed 2000 --episodes 10 \
         [--horizon 8.0] [--replan 4] [--hold 4] [--workers 2] [--output ceiling.csv]
 
 Issue 28 asks a learned behavior layer to beat ``fsm_bold`` by a clear margin on 40 seeds.
@@ -153,8 +153,8 @@ def drive_laps(seeds: list[int], settings: Settings, workers: int = 1) -> list[L
 
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", type=int, default=2000, help="the first seed")
-    parser.add_argument("--episodes", type=int, default=10, help="laps (seeds from --seeds)")
+    parser.add_argument("--seed", type=int, default=2000, help="the first seed")
+    parser.add_argument("--episodes", type=int, default=10, help="laps (seeds from --seed on)")
     parser.add_argument("--horizon", type=float, default=Settings.horizon_s,
                         help="rollout length, s")
     parser.add_argument("--replan", type=int, default=Settings.replan,
@@ -171,7 +171,7 @@ def main(argv: list[str] | None = None) -> None:
         settings = Settings(args.horizon, args.replan, args.hold)
     except ValueError as error:
         parser.error(str(error))
-    seeds = list(range(args.seeds, args.seeds + args.episodes))
+    seeds = list(range(args.seed, args.seed + args.episodes))
     results = drive_laps(seeds, settings, args.workers)
     for r in results:
         print(f"seed {r.seed}: {r.mean_mph:6.2f} mph, lap {r.lap_s} s, {r.lane_changes} lane "
