@@ -14,7 +14,9 @@ speed on the same evaluation episodes as a horizontal line. Prints the table it 
 ``--source validation`` draws the validation laps instead (one lap per validation seed,
 40 by default: ``validations.csv`` of the run, written by train.py's ``validation`` key or
 ``benchmarks/validate_policies.py --record RUN``), which rank checkpoints far better than
-the periodic 4-episode evaluation.
+the periodic 4-episode evaluation. ``--averaged-group LABEL=RUNS`` draws the validation
+laps of the same runs' averaged weights (train.py's ``averaging`` key, the rows
+``weights=averaged`` of ``validations.csv``) as one more curve.
 """
 
 from __future__ import annotations
@@ -48,25 +50,31 @@ def eval_curve(run: Path, tag: str = EVAL_TAG) -> dict[int, float]:
     return curve
 
 
-def validation_curve(run: Path) -> dict[int, float]:
-    """``{samples: mean mph}`` of one run folder's ``validations.csv``, its online weights
-    (the last row per step when a step was validated twice, e.g. after a resume)."""
+def validation_curve(run: Path, weights: str = "online") -> dict[int, float]:
+    """``{samples: mean mph}`` of one run folder's ``validations.csv`` for its ``weights``
+    (``online`` or ``averaged``; the last row per step when a step was validated twice,
+    e.g. after a resume)."""
     from sdc_training.validation_laps import CSV_NAME, read_rows
 
     path = run / CSV_NAME
     if not path.is_file():
         raise SystemExit(f"{run}: no {CSV_NAME} (train with --validate-every, or run "
                          f"benchmarks/validate_policies.py --record {run} on its checkpoints)")
-    return {int(row["timesteps"]): float(row["value"]) for row in read_rows(run)}
+    curve = {int(row["timesteps"]): float(row["value"]) for row in read_rows(run, weights)}
+    if not curve:
+        raise SystemExit(f"{run}: {CSV_NAME} has no rows of the {weights} weights")
+    return curve
 
 
 CURVES = {"eval": eval_curve, "validation": validation_curve}
 
 
-def group_curve(runs: list[Path], source: str = "eval") -> tuple[np.ndarray, np.ndarray,
-                                                                 np.ndarray, np.ndarray]:
-    """``(steps, mean, low, high)`` over the steps every run evaluated at."""
-    curves = [CURVES[source](run) for run in runs]
+def group_curve(runs: list[Path], source: str = "eval", weights: str = "online"
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``(steps, mean, low, high)`` over the steps every run evaluated at (``weights``:
+    which weights' validation laps, for ``source="validation"``)."""
+    curves = [validation_curve(run, weights) if source == "validation"
+              else CURVES[source](run) for run in runs]
     steps = sorted(set.intersection(*(set(curve) for curve in curves)))
     if not steps:
         raise SystemExit(f"runs {[str(run) for run in runs]} share no evaluation step")
@@ -89,6 +97,8 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--group", action="append", required=True, metavar="LABEL=RUNS",
                         help="a curve: comma-separated run folders of one config")
+    parser.add_argument("--averaged-group", action="append", default=[], metavar="LABEL=RUNS",
+                        help="a curve of the runs' averaged weights (--source validation)")
     parser.add_argument("--reference", action="append", default=[], metavar="NAME=MPH",
                         help="a rule-based agent's mean mph on the same evaluation episodes")
     parser.add_argument("--output", type=Path, default=Path("learning_curves.png"))
@@ -98,6 +108,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="eval: train.py's periodic evaluation (TensorBoard); validation: "
                              "the validation laps (validations.csv)")
     args = parser.parse_args(argv)
+    if args.averaged_group and args.source != "validation":
+        raise SystemExit(f"--averaged-group needs --source validation, not "
+                         f"{args.source!r}: only the validation laps score the averaged weights")
     title = args.title or ("HighwayLoopBehavior-v0: " + (
         "periodic evaluation" if args.source == "eval" else "validation laps"))
 
@@ -107,10 +120,12 @@ def main(argv: list[str] | None = None) -> None:
     import matplotlib.pyplot as plt
 
     figure, axes = plt.subplots(figsize=(7.5, 4.2))
-    for group in args.group:
+    groups = ([(group, "online") for group in args.group]
+              + [(group, "averaged") for group in args.averaged_group])
+    for group, weights in groups:
         label, folders = parse_pair(group, "group")
         runs = [Path(folder) for folder in folders.split(",")]
-        steps, mean, low, high = group_curve(runs, args.source)
+        steps, mean, low, high = group_curve(runs, args.source, weights)
         line, = axes.plot(steps / 1e6, mean, marker="o", markersize=3,
                           label=f"{label} ({len(runs)} seed{'s' * (len(runs) > 1)})")
         if len(runs) > 1:

@@ -206,7 +206,7 @@ def test_trained_policy_drives_the_path_level_env_as_in_its_behavior_env(tmp_pat
 
 
 @pytest.mark.parametrize("spec", ["dqn:agents/highway/policies/dqn_highway.zip",
-                                  "dqn_nstep_highway"])
+                                  "dqn_nstep_highway", "dqn_swa_highway"])
 def test_committed_policy_drives_a_held_out_seed_cleanly_and_changes_lanes(spec):
     """The committed DQN policies (by file, and by name) on a seed they never saw: no
     incident, lap pace near the limit, and lane changes (not keep-lane policies)."""

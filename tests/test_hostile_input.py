@@ -545,7 +545,7 @@ def test_an_agent_that_cannot_drive_the_env_is_refused_before_any_episode(tmp_pa
     assert str(raised.value) == (
         "--agents: agent 'dbw_ground_truth' drives sdc_gym/TrackLoop-v0, not "
         "sdc_gym/HighwayLoop-v0; the agents for sdc_gym/HighwayLoop-v0: dqn_highway, "
-        "dqn_nstep_highway, "
+        "dqn_nstep_highway, dqn_swa_highway, "
         "fsm_alert, fsm_bold, fsm_bold_kf, fsm_caution, fsm_conservative, "
         "fsm_conservative_kf, fsm_easing, fsm_hyper, fsm_reroute, fsm_reverse, "
         "fsm_straight_braking, lane_keeping")

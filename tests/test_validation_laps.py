@@ -195,3 +195,32 @@ def test_learning_curves_read_validation_laps_with_an_interval_over_training_see
     assert mean[0] - low[0] == pytest.approx(high[0] - mean[0])
     with pytest.raises(SystemExit, match=r"no validations\.csv"):
         learning_curves.validation_curve(tmp_path)
+
+
+def test_learning_curves_draw_the_averaged_weights_apart_from_the_online_ones(tmp_path):
+    """``--averaged-group``: the rows ``weights=averaged`` of the same validations.csv make
+    their own curve; a run without them is refused naming the weights."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import learning_curves
+
+    from sdc_training.validation_laps import append_row
+
+    run = tmp_path / "run"
+    run.mkdir()
+    append_row(run, 500_000, LapScore(45.0, 44.0, 46.0, True, True, {}))
+    append_row(run, 500_000, LapScore(46.5, 46.0, 47.0, True, True, {}), weights="averaged")
+    append_row(run, 1_000_000, LapScore(44.0, 43.0, 45.0, True, True, {}))
+    assert learning_curves.validation_curve(run) == {500_000: 45.0, 1_000_000: 44.0}
+    assert learning_curves.validation_curve(run, "averaged") == {500_000: 46.5}
+    steps, mean, _, _ = learning_curves.group_curve([run], "validation", "averaged")
+    assert list(steps) == [500_000] and list(mean) == [46.5]
+    online_only = tmp_path / "online_only"
+    online_only.mkdir()
+    append_row(online_only, 500_000, LapScore(45.0, 44.0, 46.0, True, True, {}))
+    with pytest.raises(SystemExit, match="no rows of the averaged weights"):
+        learning_curves.validation_curve(online_only, "averaged")
+    with pytest.raises(SystemExit, match="--averaged-group needs --source validation"):
+        learning_curves.main(["--group", f"a={run}", "--averaged-group", f"b={run}"])
