@@ -28,20 +28,17 @@ shield refuses, shows it here.
 from __future__ import annotations
 
 import argparse
-import math
 from dataclasses import dataclass
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 
 import sdc_gym  # noqa: F401  (registers the envs)
 from sdc_agents.policy_agent import POLICY_KINDS, load_model, training_config
-from sdc_evaluation.statistics import mean_interval
 from sdc_gym.envs.batch_vector import env_info
-from sdc_gym.stack.highway.decisions import ACTION_NAMES, LANE_MOVES, SPEED_MOVES
+from sdc_gym.stack.highway.decisions import LANE_MOVES, SPEED_MOVES
 from sdc_gym.units import MPS_TO_MPH
-from sdc_training.validation_laps import lap_config
+from sdc_training.validation_laps import drive_laps, make_lap_envs, score_laps
 
 ENV_ID = "sdc_gym/HighwayLoopBehavior-v0"
 COUNTERS = ("lane_changes", "refused", "aborted")
@@ -95,46 +92,40 @@ def action_entropy(model: Any, observations: np.ndarray) -> np.ndarray | None:
 
 def study(name: str, model: Any, config: dict[str, Any], seed: int, episodes: int,
           slow_mph: float, max_duration: float = 600.0) -> PolicyBehavior:
-    """Drive ``model`` greedily for one lap on each of ``episodes`` seeds from ``seed``."""
-    envs = gym.make_vec(ENV_ID, num_envs=episodes, vectorization_mode="vector_entry_point",
-                        config=lap_config(ENV_ID, config, max_duration), full_info=True)
-    counts = np.zeros(len(ACTION_NAMES), dtype=np.int64)
-    done = np.zeros(episodes, dtype=bool)
-    summaries: list[dict[str, Any]] = []
+    """Drive ``model`` greedily for one lap on each of ``episodes`` seeds from ``seed``
+    (the validation laps' own loop, with an observer of every step)."""
     counters = dict.fromkeys(COUNTERS, 0)
-    entropies: list[float] = []
+    entropies: list[np.ndarray] = []
     slow = decisions = 0
+
+    def observe(observations: np.ndarray, infos: dict[str, Any], live: np.ndarray,
+                ended: np.ndarray) -> None:
+        nonlocal slow, decisions
+        entropy = action_entropy(model, observations)
+        if entropy is not None:
+            entropies.append(entropy[live])
+        speeds = np.asarray(infos["speed"], dtype=float) * MPS_TO_MPH
+        slow += int(np.count_nonzero(speeds[live] < slow_mph))
+        decisions += int(live.sum())
+        for env in np.flatnonzero(ended):
+            behavior = env_info(infos, env)["behavior"]
+            for key in COUNTERS:
+                counters[key] += int(behavior[key])
+
+    envs = make_lap_envs(ENV_ID, config, episodes, max_duration, full_info=True)
     try:
-        observations, _ = envs.reset(seed=seed)
-        while not done.all():
-            actions = np.asarray(model.predict(observations, deterministic=True)[0])
-            live = ~done
-            counts += np.bincount(actions[live], minlength=counts.size)
-            entropy = action_entropy(model, observations)
-            if entropy is not None:
-                entropies.extend(float(x) for x in entropy[live])
-            observations, _, terminated, truncated, infos = envs.step(actions)
-            speeds = np.asarray(infos["speed"], dtype=float) * MPS_TO_MPH
-            slow += int(np.count_nonzero(speeds[live] < slow_mph))
-            decisions += int(live.sum())
-            for env in np.flatnonzero((terminated | truncated) & live):
-                info = env_info(infos, env)
-                summaries.append(info["summary"])
-                for key in COUNTERS:
-                    counters[key] += int(info["behavior"][key])
-                done[env] = True
+        batch = drive_laps(envs, lambda obs: model.predict(obs, deterministic=True)[0],
+                           seed, on_step=observe)
     finally:
         envs.close()
-    interval = mean_interval(np.asarray([s["mean_speed_mph"] for s in summaries]))
+    score = score_laps(ENV_ID, batch.summaries)
     return PolicyBehavior(
-        name=name, mph=float(interval.value),
-        mph_low=math.nan if interval.low is None else float(interval.low),
-        mph_high=math.nan if interval.high is None else float(interval.high),
-        action_counts=counts, per_lap={k: v / episodes for k, v in counters.items()},
+        name=name, mph=score.value, mph_low=score.low, mph_high=score.high,
+        action_counts=batch.action_counts,
+        per_lap={key: value / episodes for key, value in counters.items()},
         slow_share=slow / max(1, decisions),
-        entropy=float(np.mean(entropies)) if entropies else None,
-        collisions=sum(s["incidents"].get("collision", 0) for s in summaries),
-        incidents=sum(s["incident_total"] for s in summaries))
+        entropy=float(np.concatenate(entropies).mean()) if entropies else None,
+        collisions=score.counts["collisions"], incidents=score.counts["incidents"])
 
 
 def table(rows: list[PolicyBehavior], slow_mph: float) -> str:

@@ -98,17 +98,26 @@ def lap_section(env_id: str) -> str:
 
 
 def make_lap_envs(env_id: str, config: Mapping[str, Any], episodes: int,
-                  max_duration: float | None = None) -> Any:
+                  max_duration: float | None = None, full_info: bool = False) -> Any:
     """The native batch of ``episodes`` one-lap envs (reusable: :func:`drive_laps` resets
-    it with the seed each time)."""
+    it with the seed each time); ``full_info`` gives every step's ``info`` (the vector
+    env's option), for an ``on_step`` observer of :func:`drive_laps`."""
     return gym.make_vec(env_id, num_envs=episodes,
                         config=lap_config(env_id, config, max_duration),
-                        vectorization_mode="vector_entry_point")
+                        vectorization_mode="vector_entry_point", full_info=full_info)
 
 
-def drive_laps(envs: Any, act: Callable[[np.ndarray], np.ndarray], seed: int) -> LapBatch:
+StepObserver = Callable[[np.ndarray, dict[str, Any], np.ndarray, np.ndarray], None]
+"""``on_step(observations, infos, live, ended)`` of :func:`drive_laps`, after each step:
+the observations the actions were chosen on, the step's vector ``info``, the envs whose
+lap the step advanced and those whose lap it ended (boolean masks)."""
+
+
+def drive_laps(envs: Any, act: Callable[[np.ndarray], np.ndarray], seed: int,
+               on_step: StepObserver | None = None) -> LapBatch:
     """Reset ``envs`` with ``seed`` (env ``i``: ``seed + i``) and step them with
-    ``act(observations)`` until every env's episode has ended once."""
+    ``act(observations)`` until every env's episode has ended once; ``on_step`` sees
+    every step (:data:`StepObserver`)."""
     from sdc_gym.envs.batch_vector import env_info
 
     episodes = envs.num_envs
@@ -120,12 +129,17 @@ def drive_laps(envs: Any, act: Callable[[np.ndarray], np.ndarray], seed: int) ->
     observations, _ = envs.reset(seed=seed)
     while not done.all():
         actions = act(observations)
+        live = ~done
         if counts.size:
-            counts += np.bincount(np.asarray(actions)[~done], minlength=counts.size)
+            counts += np.bincount(np.asarray(actions)[live], minlength=counts.size)
+        chosen_on = observations
         observations, _, terminated, truncated, infos = envs.step(actions)
-        for env in np.flatnonzero((terminated | truncated) & ~done):
+        ended = (terminated | truncated) & live
+        for env in np.flatnonzero(ended):
             summaries[env] = env_info(infos, env)["summary"]
-            done[env] = True
+        if on_step is not None:
+            on_step(chosen_on, infos, live, ended)
+        done |= ended
     return LapBatch([summary for summary in summaries if summary is not None], counts)
 
 
