@@ -22,6 +22,7 @@ laps of the same runs' averaged weights (train.py's ``averaging`` key, the rows
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 
 import numpy as np
@@ -93,6 +94,20 @@ def parse_pair(text: str, what: str) -> tuple[str, str]:
     return label, value
 
 
+def parse_ylim(text: str) -> tuple[float, float]:
+    """``--ylim LOW,HIGH``: two finite numbers, LOW below HIGH."""
+    parts = text.split(",")
+    try:
+        low, high = (float(part) for part in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--ylim takes LOW,HIGH (two numbers, mph), not {text!r}") from None
+    if not (math.isfinite(low) and math.isfinite(high) and low < high):
+        raise argparse.ArgumentTypeError(
+            f"--ylim {text!r}: LOW and HIGH must be finite with LOW < HIGH")
+    return low, high
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--group", action="append", required=True, metavar="LABEL=RUNS",
@@ -107,6 +122,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--source", choices=sorted(CURVES), default="eval",
                         help="eval: train.py's periodic evaluation (TensorBoard); validation: "
                              "the validation laps (validations.csv)")
+    parser.add_argument("--ylim", type=parse_ylim, default=None, metavar="LOW,HIGH",
+                        help="the mph axis' range (default: matplotlib's, which a wide "
+                             "interval over two seeds stretches)")
     args = parser.parse_args(argv)
     if args.averaged_group and args.source != "validation":
         raise SystemExit(f"--averaged-group needs --source validation, not "
@@ -141,6 +159,8 @@ def main(argv: list[str] | None = None) -> None:
     axes.set_ylabel("mean mph, " + ("evaluation episodes" if args.source == "eval"
                                     else "validation laps"))
     axes.set_title(title)
+    if args.ylim:
+        axes.set_ylim(*args.ylim)
     axes.grid(alpha=0.3)
     axes.legend(loc="lower right", fontsize=8)
     figure.tight_layout()

@@ -5,6 +5,7 @@ best model across a resume, with clear errors for bad values."""
 
 from __future__ import annotations
 
+import argparse
 import csv
 
 import gymnasium as gym
@@ -224,3 +225,17 @@ def test_learning_curves_draw_the_averaged_weights_apart_from_the_online_ones(tm
         learning_curves.validation_curve(online_only, "averaged")
     with pytest.raises(SystemExit, match="--averaged-group needs --source validation"):
         learning_curves.main(["--group", f"a={run}", "--averaged-group", f"b={run}"])
+
+
+def test_learning_curves_ylim_takes_two_ordered_numbers():
+    """``--ylim LOW,HIGH`` fixes the mph axis; anything else is refused naming the flag."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import learning_curves
+
+    assert learning_curves.parse_ylim("43,48.5") == (43.0, 48.5)
+    for bad in ("43", "48,43", "a,b", "43,inf", "1,2,3"):
+        with pytest.raises(argparse.ArgumentTypeError, match="--ylim"):
+            learning_curves.parse_ylim(bad)
