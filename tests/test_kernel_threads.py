@@ -9,7 +9,6 @@ resets in between) and the decision kernel draws from each env's generator.
 
 from __future__ import annotations
 
-import struct
 from typing import Any
 
 import numba
@@ -21,6 +20,7 @@ from sdc_gym.config import ConfigError
 from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv, HighwayLoopVectorEnv
 from sdc_gym.kernel_threads import KernelThreads, max_kernel_threads, parallel_twin
 from sdc_gym.traffic.kinematics import segments
+from tests.exact_bytes import feed_bytes
 
 BUSY = {"safety_shield": False,
         "highway": {"max_duration": 12.0, "traffic": {"rogue": True, "rogue_rate": 30.0}}}
@@ -28,42 +28,18 @@ BUSY = {"safety_shield": False,
 needs_two = pytest.mark.skipif(max_kernel_threads() < 2, reason="NUMBA_NUM_THREADS < 2")
 
 
-def _feed(parts: list[bytes], value: Any) -> None:
-    """``value`` as bytes, exactly: numeric arrays by dtype, shape and bytes, floats by
-    their bits, dicts by sorted key, object arrays (the vector info's lists and dicts)
-    item by item (their own bytes are pointers)."""
-    if isinstance(value, np.ndarray) and value.dtype != object:
-        parts += [f"{value.dtype}{value.shape}".encode(), np.ascontiguousarray(value).tobytes()]
-    elif isinstance(value, np.ndarray):
-        parts.append(f"object{value.shape}".encode())
-        _feed(parts, value.ravel().tolist())
-    elif isinstance(value, dict):
-        for key in sorted(value):
-            parts.append(f"<{key}>".encode())
-            _feed(parts, value[key])
-    elif isinstance(value, list | tuple):
-        parts.append(b"[")
-        for item in value:
-            _feed(parts, item)
-        parts.append(b"]")
-    elif isinstance(value, float | np.floating):
-        parts.append(struct.pack("<d", float(value)))
-    else:  # bool, int, str, None
-        parts.append(f"{type(value).__name__}:{value}".encode())
-
-
 def _behavior_run(envs: int, threads: int, steps: int) -> tuple[bytes, int]:
     config = {**BUSY, "highway": {**BUSY["highway"], "kernel_threads": threads}}
     vector = HighwayLoopBehaviorVectorEnv(envs, config, full_info=True)
     record: list[bytes] = []
     obs, info = vector.reset(seed=21)
-    _feed(record, [obs, info])
+    feed_bytes(record, [obs, info])
     rng = np.random.default_rng(5)
     endings = 0
     for _ in range(steps):
         actions = np.where(rng.random(envs) < 0.6, 3, rng.integers(9, size=envs))
         obs, reward, terminated, truncated, info = vector.step(actions)
-        _feed(record, [obs, reward, terminated, truncated, info])
+        feed_bytes(record, [obs, reward, terminated, truncated, info])
         endings += int(terminated.sum() + truncated.sum())
     # The 2-thread batch ran the parallel twins, numba's threads on: not the serial code.
     picked = vector.batch.world.kernel_threads._picked
@@ -91,14 +67,14 @@ def test_two_kernel_threads_path_level_batch() -> None:
         config = {"traffic": {"car_count": 30}, "max_duration": 6.0, "kernel_threads": threads}
         vector = HighwayLoopVectorEnv(3, config, full_info=True)
         record: list[bytes] = []
-        _feed(record, vector.reset(seed=40))
+        feed_bytes(record, vector.reset(seed=40))
         points = vector.world.path_points
         rng = np.random.default_rng(9)
         start = vector.world.start_xy
         for _ in range(40):
             # Paths straight ahead of the start, then noise: incidents, ends, resets.
             actions = start + np.cumsum(rng.normal(0.4, 0.1, (3, points, 2)), axis=1)
-            _feed(record, vector.step(actions))
+            feed_bytes(record, vector.step(actions))
         runs.append(b"".join(record))
     assert runs[0] == runs[1]
 

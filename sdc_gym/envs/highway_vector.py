@@ -26,6 +26,7 @@ from sdc_gym.envs.highway_behavior import behavior_spaces
 from sdc_gym.envs.highway_behavior_world import HighwayBehaviorWorld
 from sdc_gym.envs.highway_loop import highway_spaces
 from sdc_gym.envs.highway_world import HighwayWorld
+from sdc_gym.envs.split_vector import split_or_batch
 from sdc_gym.scenarios.options import OPTION
 from sdc_gym.stack.highway.decisions import ACTION_NAMES
 from sdc_gym.validation.actions import discrete_indices, real_array
@@ -142,11 +143,17 @@ class HighwayLoopVectorEnv(BatchVectorEnv):
         return self.world.is_success(env)
 
 
-def make_behavior_vector_env(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/HighwayLoopBehavior-v0``."""
-    return HighwayLoopBehaviorVectorEnv(num_envs, **kwargs)
+def make_behavior_vector_env(num_envs: int = 1, processes: int = 1,
+                             **kwargs: Any) -> gym.vector.VectorEnv:
+    """Vector entry point of ``sdc_gym/HighwayLoopBehavior-v0``: one batch in this process, or
+    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
+    return split_or_batch("sdc_gym/HighwayLoopBehavior-v0", HighwayLoopBehaviorVectorEnv, num_envs,
+                          processes, kwargs)
 
 
-def make_highway_vector_env(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/HighwayLoop-v0``."""
-    return HighwayLoopVectorEnv(num_envs, **kwargs)
+def make_highway_vector_env(num_envs: int = 1, processes: int = 1,
+                            **kwargs: Any) -> gym.vector.VectorEnv:
+    """Vector entry point of ``sdc_gym/HighwayLoop-v0``: one batch in this process, or
+    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
+    return split_or_batch("sdc_gym/HighwayLoop-v0", HighwayLoopVectorEnv, num_envs,
+                          processes, kwargs)

@@ -30,6 +30,7 @@ from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from sdc_gym.envs.batch_vector import BatchVectorEnv
+from sdc_gym.envs.split_vector import split_or_batch
 from sdc_gym.envs.track_behavior_world import TrackBehaviorWorld
 from sdc_gym.envs.track_world import TrackWorld
 from sdc_gym.validation.actions import real_array
@@ -138,11 +139,17 @@ def _vector_info(info: dict[str, Any]) -> dict[str, Any]:
     return info
 
 
-def make_track_behavior_vector_env(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/TrackLoopBehavior-v0``."""
-    return TrackLoopBehaviorVectorEnv(num_envs, **kwargs)
+def make_track_behavior_vector_env(num_envs: int = 1, processes: int = 1,
+                                   **kwargs: Any) -> gym.vector.VectorEnv:
+    """Vector entry point of ``sdc_gym/TrackLoopBehavior-v0``: one batch in this process, or
+    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
+    return split_or_batch("sdc_gym/TrackLoopBehavior-v0", TrackLoopBehaviorVectorEnv, num_envs,
+                          processes, kwargs)
 
 
-def make_track_vector_env(num_envs: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/TrackLoop-v0``."""
-    return TrackLoopVectorEnv(num_envs, **kwargs)
+def make_track_vector_env(num_envs: int = 1, processes: int = 1,
+                          **kwargs: Any) -> gym.vector.VectorEnv:
+    """Vector entry point of ``sdc_gym/TrackLoop-v0``: one batch in this process, or
+    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
+    return split_or_batch("sdc_gym/TrackLoop-v0", TrackLoopVectorEnv, num_envs,
+                          processes, kwargs)
