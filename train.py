@@ -41,8 +41,9 @@ Envs with a native batch (``sdc_gym/HighwayLoopBehavior-v0``, ``sdc_gym/HighwayL
 ``sdc_gym/TrackLoopBehavior-v0``, ``sdc_gym/TrackLoop-v0``) run as one batch of ``n_envs``
 envs in this process (``sdc_gym.envs.sb3.SB3VecEnv``: no subprocesses, one batched policy
 forward pass per step; env ``i`` is the env seeded
-``seed + i``, as SB3's own vec envs seed it); others, or ``--vectorize subprocess``, in
-``n_envs`` subprocesses (default: one per CPU core).
+``seed + i``, as SB3's own vec envs seed it); ``--vectorize split`` splits that batch over
+two worker processes (the same samples, both cores stepping the envs); other envs, or
+``--vectorize subprocess``, run in ``n_envs`` subprocesses (default: one per CPU core).
 """
 
 from __future__ import annotations
@@ -90,6 +91,8 @@ HYPERPARAMS_DIR = packaged_config("hyperparams")  # configs/hyperparams, install
 RUN_KEYS = {"env", "config", "algo", "timesteps", "n_envs", "seed", "eval", "checkpoint_every",
             "framework", "validation", "averaging"}
 CHECKPOINT_EVERY = 10_000
+SPLIT_PROCESSES = 2
+"""``--vectorize split``: worker processes the batch is split over (this machine's 2 cores)."""
 DEFAULT_TIMESTEPS = 100_000
 DEFAULT_ENV = "sdc_gym/HighwayLoopBehavior-v0"
 
@@ -142,9 +145,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "even if its replay buffer is missing or torn (an empty buffer; "
                              "without this flag that is refused)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--vectorize", choices=("batch", "subprocess"), default="batch",
+    parser.add_argument("--vectorize", choices=("batch", "split", "subprocess"),
+                        default="batch",
                         help="batch: the env's native batch in this process (where it has "
-                             "one); subprocess: one process per env")
+                             "one); split: that batch split over two worker processes, the "
+                             "same samples bit for bit (both cores step the envs while the "
+                             "learner waits); subprocess: one process per env")
     parser.add_argument("--torch-threads", type=int, default=1,
                         help="torch threads in the learner (small MLPs: 1 is fastest, and "
                              "the env processes keep the other cores)")
@@ -392,8 +398,9 @@ def make_vec_env(config: dict[str, Any], n_envs: int, seed: int,
     from sdc_gym.envs.sb3 import VECTOR_ENVS, SB3VecEnv
 
     env_id = config["env"]
-    if vectorize == "batch" and env_id in VECTOR_ENVS:
-        batch = SB3VecEnv(env_id, n_envs, config["config"])
+    if vectorize in ("batch", "split") and env_id in VECTOR_ENVS:
+        processes = min(SPLIT_PROCESSES, n_envs) if vectorize == "split" else 1
+        batch = SB3VecEnv(env_id, n_envs, config["config"], processes=processes)
         batch.seed(seed)
         return VecMonitor(batch)
     if env_id.startswith("sdc_gym/"):  # subprocesses import the package that registers it

@@ -211,3 +211,25 @@ def test_the_track_behavior_env_trains_as_one_native_batch(tmp_path):
                                  "--n-envs", "4", "--timesteps", "64", "--hp", "n_steps=16",
                                  "--hp", "batch_size=32", "--no-progress"]))
     assert model.num_timesteps == 64 and model.n_envs == 4
+
+
+def test_vectorize_split_trains_the_same_model_as_one_batch(tmp_path):
+    """--vectorize split: the batch in two worker processes gives PPO the same samples, so
+    the same seed trains the same weights, bit for bit."""
+    from stable_baselines3 import PPO
+
+    path = tmp_path / "run.yaml"
+    path.write_text(yaml.safe_dump({"env": "sdc_gym/HighwayLoopBehavior-v0", "algo": "ppo",
+                                    "seed": 4, "eval": {"every": 0},
+                                    "config": {"highway": {"max_duration": 8.0}}}))
+    weights = []
+    for vectorize in ("batch", "split"):
+        model = PPO.load(train.main(["--config", str(path), "--output", str(tmp_path / vectorize),
+                                     "--n-envs", "5", "--timesteps", "160", "--hp", "n_steps=32",
+                                     "--hp", "batch_size=40", "--vectorize", vectorize,
+                                     "--no-progress"]))
+        assert model.num_timesteps == 160
+        weights.append(model.policy.state_dict())
+    assert weights[0].keys() == weights[1].keys()
+    for key, value in weights[0].items():
+        assert value.equal(weights[1][key]), key

@@ -29,6 +29,7 @@ from sdc_gym.envs.highway_vector import (
     HighwayLoopVectorEnv,
     env_info,
 )
+from sdc_gym.envs.split_vector import split_or_batch
 from sdc_gym.envs.track_vector import TrackLoopBehaviorVectorEnv, TrackLoopVectorEnv
 
 VECTOR_ENVS = {
@@ -47,13 +48,17 @@ class SB3VecEnv(VecEnv):
         env_id: one of :data:`VECTOR_ENVS`.
         num_envs: envs in the batch.
         config: the single env's config.
+        processes: worker processes the batch is split over (1: this process;
+            :mod:`sdc_gym.envs.split_vector`), bit for bit the same samples.
     """
 
-    def __init__(self, env_id: str, num_envs: int, config: dict[str, Any] | None = None) -> None:
+    def __init__(self, env_id: str, num_envs: int, config: dict[str, Any] | None = None,
+                 processes: int = 1) -> None:
         if env_id not in VECTOR_ENVS:
             raise ValueError(f"{env_id!r} has no native batch; valid: {sorted(VECTOR_ENVS)}")
-        self.vector = VECTOR_ENVS[env_id](num_envs, config,
-                                          autoreset_mode=AutoresetMode.SAME_STEP)
+        self.vector = split_or_batch(env_id, VECTOR_ENVS[env_id], num_envs, processes,
+                                     {"config": config,
+                                      "autoreset_mode": AutoresetMode.SAME_STEP})
         self.env_id = env_id
         super().__init__(num_envs, self.vector.single_observation_space,
                          self.vector.single_action_space)
