@@ -113,9 +113,13 @@ from sdc_gym.units import METERS_PER_MILE
 from sdc_gym.validation.yaml_files import read_yaml
 
 DEFAULT_ENV = "sdc_gym/HighwayLoop-v0"
-COMMITTED_POLICY = "dqn:agents/highway/policies/dqn_highway.zip"
-"""The committed highway behavior policy (DQN on ``HighwayLoopBehavior-v0``; its training
-config and command are in ``dqn_highway.yaml`` beside it)."""
+COMMITTED_POLICY = "dqn_swa_highway"
+"""The committed highway behavior policy shown by default, by name: DQN on
+``HighwayLoopBehavior-v0`` with 3-step returns and averaged weights, faster than ``fsm_bold``
+on the held-out seeds 1000-1039 (docs/rl.md); the model is
+``agents/highway/policies/dqn_swa_highway.zip``, its training config and command in
+``dqn_swa_highway.yaml`` beside it. The first committed policy, ``dqn_highway``, stays
+loadable by name or as ``dqn:agents/highway/policies/dqn_highway.zip``."""
 DEFAULT_AGENTS: tuple[str, ...] = ("fsm_conservative", "fsm_bold", COMMITTED_POLICY,
                                    "lane_keeping")
 """Agents compared on the highway when ``--agents`` is not given: the seed's planner in both

@@ -127,13 +127,17 @@ def test_seed_options():
 
 
 def test_default_comparison_is_the_fsm_the_committed_policy_and_the_baseline():
-    from sdc_agents.policy_agent import resolve_model_path
+    from sdc_agents.committed_policies import committed_policies
     from sdc_agents.registry import parse_agent_spec
 
+    assert evaluate.COMMITTED_POLICY == "dqn_swa_highway"  # the one faster than fsm_bold
     assert list(evaluate.DEFAULT_AGENTS) == ["fsm_conservative", "fsm_bold",
                                              evaluate.COMMITTED_POLICY, "lane_keeping"]
-    kind, path = parse_agent_spec(evaluate.COMMITTED_POLICY)
-    assert kind == "dqn" and resolve_model_path(path).is_file()
+    assert parse_agent_spec(evaluate.COMMITTED_POLICY) == (None, "dqn_swa_highway")  # a name
+    policy = committed_policies()[evaluate.COMMITTED_POLICY]
+    assert policy.algo == "dqn" and policy.model.is_file()
+    assert policy.env_id == evaluate.DEFAULT_ENV
+    assert "dqn_highway" in committed_policies()  # the first one stays loadable by name
     assert evaluate.parse_args([]).agents is None  # resolved per env in main()
     assert set(evaluate.DEFAULT_TRACK_AGENTS) <= set(AGENTS)
 

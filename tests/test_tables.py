@@ -88,8 +88,7 @@ def test_a_default_run_reads_whole_in_80_columns():
     name and figure on its row's one line."""
     episodes = []
     for agent, mph in (("fsm_conservative", 45.85), ("fsm_bold", 47.13),
-                       ("dqn:agents/highway/policies/dqn_highway.zip", 46.49),
-                       ("lane_keeping", 41.89)):
+                       ("dqn_swa_highway", 47.70), ("lane_keeping", 41.89)):
         for seed in range(3):
             episode = track_episode(agent, seed, mph, 0)
             episode.update(lap_times=[6900.0 / (mph * 0.44704) + seed], laps=1,
@@ -101,7 +100,7 @@ def test_a_default_run_reads_whole_in_80_columns():
     terminal_output(console, analyse(episodes, Settings(resamples=500)), "highway")
     lines = console.export_text().splitlines()
     assert max(len(line) for line in lines) <= 80
-    for label in ("fsm_conservative", "fsm_bold", "dqn:dqn_highway", "lane_keeping"):
+    for label in ("fsm_conservative", "fsm_bold", "dqn_swa_highway", "lane_keeping"):
         (row,) = [line for line in lines if line.startswith(f"{label} ")
                   and "faster" not in line]
         assert "mph" not in row and row.count("[") == 3  # mph, lap, incidents intervals

@@ -167,6 +167,8 @@ def test_the_wheel_installs_only_prefixed_names_and_ships_its_data(installed):
     for data in ("sdc_configs/train_highway_behavior.yaml", "sdc_configs/hyperparams/dqn.yaml",
                  "sdc_configs/tune/highway_ppo.yaml", "sdc_configs/track_loop.yaml",
                  "sdc_agents/highway/policies/dqn_highway.zip",
+                 "sdc_agents/highway/policies/dqn_swa_highway.zip",  # evaluate.py's default
+                 "sdc_agents/highway/policies/dqn_swa_highway.yaml",
                  "sdc_agents/track/models/light_cnn.pt", "sdc_gym/scenarios/library/"
                  "a_early_lane_change.yaml", "sdc_gym_cli/evaluate.py", "sdc_gym_cli/train.py"):
         assert data in names, data
