@@ -1,4 +1,5 @@
-"""Batched behavior env steps/s with ``kernel_threads`` 1 and 2, side by side in one run.
+"""Batched behavior env steps/s on one core and on two (``kernel_threads`` 2, or the batch
+split over 2 worker processes), side by side in one run.
 
     python benchmarks/bench_kernel_threads.py [--envs 64 256 1024] [--rounds 5]
         [--env-steps 20000] [--peer-steps 100]
@@ -12,11 +13,14 @@ first step), then timed in rounds: each round steps the batch for ``--env-steps`
 steps with its kernels on 1 thread and as many on 2 (``KernelThreads.set``: the same
 bits either way, so both continue the same episodes) and highway-env's
 ``highway-fast-v0`` (the peer, one env, ``bench_behavior.env_steps_per_second``) for
-``--peer-steps``, in that order, so that the three see the same load. Prints per row
-min/median/max env steps/s over the rounds, the median ratio 2 threads / 1 thread and
-each median / the peer's median (all rounds of every E), with the load average at each
-round and the threading layer numba ran (workqueue unless ``NUMBA_THREADING_LAYER`` says
-otherwise: :mod:`sdc_gym.kernel_threads`).
+``--peer-steps``, in that order, so that the three see the same load. A second batch of
+each E, made with ``processes=2`` (:mod:`sdc_gym.envs.split_vector`: envs ``0..E/2-1`` and
+``E/2..E-1`` in two worker processes, kernels on one thread each, the same bits), is
+stepped as many env steps in each round after the threads. Prints per row min/median/max
+env steps/s over the rounds, the median ratios to one thread and each median / the peer's
+median (all rounds of every E), with the load average at each round and the threading
+layer numba ran (workqueue unless ``NUMBA_THREADING_LAYER`` says otherwise:
+:mod:`sdc_gym.kernel_threads`).
 """
 
 from __future__ import annotations
@@ -37,6 +41,8 @@ import sdc_gym  # noqa: F401
 BEHAVIOR = "sdc_gym/HighwayLoopBehavior-v0"
 PEER = "highway-fast-v0"
 THREADS = (1, 2)
+SPLIT = "2 processes"
+"""The rates' key of the batch split over two worker processes (``(E, SPLIT)``)."""
 
 
 def load() -> str:
@@ -53,6 +59,17 @@ def make(envs: int, threads: int,
         vector.unwrapped.batch.world.kernel_threads.set(warm)
         for _ in range(3):
             vector.step(rng.integers(9, size=envs))
+    return vector, rng
+
+
+def make_split(envs: int, seed: int = 0) -> tuple[gym.vector.VectorEnv, np.random.Generator]:
+    """A batch of ``envs`` split over 2 worker processes, reset and warmed up."""
+    vector = gym.make_vec(BEHAVIOR, num_envs=envs, vectorization_mode="vector_entry_point",
+                          processes=2)
+    vector.reset(seed=seed)
+    rng = np.random.default_rng(seed)
+    for _ in range(3):
+        vector.step(rng.integers(9, size=envs))
     return vector, rng
 
 
@@ -88,32 +105,36 @@ def main() -> None:
     rates: dict[object, list[float]] = {PEER: []}
     for envs in args.envs:
         vector, rng = make(envs, max(THREADS))
+        split, split_rng = make_split(envs)
         threads_of = vector.unwrapped.batch.world.kernel_threads  # shared by every layer
         print(f"E = {envs}: made and warmed up (threading layer "
               f"{numba.threading_layer()}), load {load()}", flush=True)
-        for threads in THREADS:
-            rates[(envs, threads)] = []
+        for mode in (*THREADS, SPLIT):
+            rates[(envs, mode)] = []
         for round_ in range(args.rounds):
             for threads in THREADS:
                 threads_of.set(threads)
                 rates[(envs, threads)].append(steps_per_second(vector, rng, args.env_steps))
+            rates[(envs, SPLIT)].append(steps_per_second(split, split_rng, args.env_steps))
             rates[PEER].append(env_steps_per_second(PEER, args.peer_steps, seed=round_))
             print(f"  round {round_ + 1}/{args.rounds}: "
                   + ", ".join(f"{t} thread(s) {rates[(envs, t)][-1]:,.0f}" for t in THREADS)
-                  + f", {PEER} {rates[PEER][-1]:,.1f}; load {load()}", flush=True)
+                  + f", {SPLIT} {rates[(envs, SPLIT)][-1]:,.0f}, {PEER} "
+                  f"{rates[PEER][-1]:,.1f}; load {load()}", flush=True)
         vector.close()
-        del vector
+        split.close()
+        del vector, split
     peer = statistics.median(rates[PEER])
     print(f"\nload at the end {load()}; env steps/s, min / median / max of {args.rounds} "
           "rounds\n")
-    print(f"| E | kernel_threads 1 | kernel_threads 2 | 2 / 1 (medians) | "
-          f"1 thread / {PEER} | 2 threads / {PEER} |")
-    print("|---:|---|---|---:|---:|---:|")
+    print(f"| E | kernel_threads 1 | kernel_threads 2 | {SPLIT} | 2 threads / 1 | "
+          f"{SPLIT} / 1 | 1 thread / {PEER} | {SPLIT} / {PEER} |")
+    print("|---:|---|---|---|---:|---:|---:|---:|")
     for envs in args.envs:
-        one, two = rates[(envs, 1)], rates[(envs, 2)]
-        m1, m2 = statistics.median(one), statistics.median(two)
-        print(f"| {envs} | {cells(one)} | {cells(two)} | {m2 / m1:.2f}x | {m1 / peer:,.0f}x "
-              f"| {m2 / peer:,.0f}x |")
+        one, two, split = rates[(envs, 1)], rates[(envs, 2)], rates[(envs, SPLIT)]
+        m1, m2, ms = (statistics.median(values) for values in (one, two, split))
+        print(f"| {envs} | {cells(one)} | {cells(two)} | {cells(split)} | {m2 / m1:.2f}x | "
+              f"{ms / m1:.2f}x | {m1 / peer:,.0f}x | {ms / peer:,.0f}x |")
     print(f"\n{PEER} (one env, the peer, every round of every E): {cells(rates[PEER])} "
           "env steps/s")
 

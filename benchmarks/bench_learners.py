@@ -62,15 +62,17 @@ from learners_pufferlib import COLLECTION_SHARE, puffer_importable
 from speed_targets import sequential_bound
 
 
-def env_rate(n_envs: int, samples: int, kernel_threads: int) -> float:
+def env_rate(n_envs: int, samples: int, kernel_threads: int, processes: int = 1) -> float:
     """The env alone: random discrete actions on the native batch (SAME_STEP autoreset, as
-    :class:`~sdc_gym.envs.sb3.SB3VecEnv` runs it), after a warm-up of 64 steps."""
+    :class:`~sdc_gym.envs.sb3.SB3VecEnv` runs it; ``processes`` 2: split over two worker
+    processes), after a warm-up of 64 steps."""
     from gymnasium.vector import AutoresetMode
 
-    from sdc_gym.envs.highway_vector import HighwayLoopBehaviorVectorEnv
+    from sdc_gym.envs.highway_vector import make_behavior_vector_env
 
     config = {"highway": {"kernel_threads": kernel_threads}} if kernel_threads > 1 else None
-    env = HighwayLoopBehaviorVectorEnv(n_envs, config, autoreset_mode=AutoresetMode.SAME_STEP)
+    env = make_behavior_vector_env(n_envs, processes, config=config,
+                                   autoreset_mode=AutoresetMode.SAME_STEP)
     steps = max(1, samples // n_envs)
     actions = np.random.default_rng(0).integers(0, env.single_action_space.n,
                                                 (steps + 64, n_envs))
@@ -85,7 +87,8 @@ def env_rate(n_envs: int, samples: int, kernel_threads: int) -> float:
     return steps * n_envs / wall
 
 
-def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int,
+             processes: int = 1) -> float:
     import torch
     from stable_baselines3 import PPO
 
@@ -97,7 +100,7 @@ def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
 
         vec = NullVecEnv(n_envs)
     else:
-        vec = SB3VecEnv(ENV_ID, n_envs)
+        vec = SB3VecEnv(ENV_ID, n_envs, processes=processes)
     hyper = ppo_settings(n_envs)
     model = PPO("MlpPolicy", vec, seed=0, verbose=0, device="cpu", **hyper)
     rollout = n_envs * hyper["n_steps"]
@@ -229,9 +232,21 @@ def env_kt2_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     return env_rate(n_envs, samples, 2)
 
 
+def env_split_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(n_envs, samples, 1, processes=2)
+
+
+def sb3_split_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    """SB3's PPO collecting from the batch split over two worker processes
+    (``train.py --vectorize split``): both cores step the envs while the learner waits."""
+    return sb3_rate(n_envs, samples, noop, threads, processes=2)
+
+
 CASES = {
     "env": (env_alone_rate, False), "env-kt2": (env_kt2_rate, False),
+    "env-split": (env_split_rate, False),
     "sb3": (sb3_rate, False), "sb3-noop": (sb3_rate, True),
+    "sb3-split": (sb3_split_rate, False),
     "torchrl": (torchrl_rate, False), "torchrl-noop": (torchrl_rate, True),
     "pufferlib": (pufferlib_rate, False), "pufferlib-noop": (pufferlib_rate, True),
     "pufferlib-kt2": (pufferlib_kt2_rate, False),
@@ -243,6 +258,7 @@ OPTIONAL = {"torchrl": "torchrl", "pufferlib": "pufferlib"}
 """Case prefix -> the module it needs (none is a project dependency)."""
 BOUNDS = {
     "sb3": ("sb3-noop", ("env",)),
+    "sb3-split": ("sb3-noop", ("env-split",)),
     "torchrl": ("torchrl-noop", ("env",)),
     "pufferlib": ("pufferlib-noop", ("env", "env-kt2")),
     "pufferlib-kt2": ("pufferlib-noop", ("env-kt2",)),

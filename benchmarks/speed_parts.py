@@ -7,7 +7,8 @@ median); each ``*_lines`` function prints one part's table:
 * ``learners``: ``bench_learners.py``'s cases (the env alone, each learner and its no-op
   case, RLlib) interleaved in rounds, then ``learner_time_to_mph.py``'s races;
 * ``threads``: ``bench_kernel_threads.py``'s batches (kernel_threads 1 and 2 on one batch per
-  E) and its peer, highway-env's ``highway-fast-v0``;
+  E, and the batch split over 2 worker processes) and its peer, highway-env's
+  ``highway-fast-v0``;
 * ``cold``: ``cold_start.py``'s child processes, each on an empty ``NUMBA_CACHE_DIR`` and
   again on the folder it filled (the fresh process a cold start needs);
 * ``track``: ``bench_track_batched.py``'s ``track_single`` worker (the single
@@ -35,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from learner_time_to_mph import DEFAULT_TARGET_MPH, Race, race_table  # noqa: E402
-from speed_targets import sequential_bound, spread  # noqa: E402
+from speed_targets import SPLIT, sequential_bound, spread  # noqa: E402
 
 SCALAR_COMMIT = "4bba301"
 """The last commit with the scalar track code (docs/batched.md: ``--before`` of 054b497)."""
@@ -106,7 +107,7 @@ def learner_cases() -> tuple[list[str], list[str]]:
     each importable learner with its no-op case, RLlib (no no-op case) when Ray imports."""
     from learners_pufferlib import puffer_importable
 
-    cases, notes = ["env", "sb3", "sb3-noop"], []
+    cases, notes = ["env", "env-split", "sb3", "sb3-noop", "sb3-split"], []
     if importlib.util.find_spec("torchrl") is not None:
         cases += ["torchrl", "torchrl-noop"]
     else:
@@ -214,46 +215,53 @@ def learner_lines(result: LearnerResult) -> list[str]:
 
 # ------------------------------------------------------------------ threads
 def measure_threads(settings: Settings,
-                    report: Report = print) -> dict[tuple[int, int] | str, list[float]]:
-    """``{(E, kernel_threads): rounds, "peer": rounds}`` (bench_kernel_threads' method)."""
+                    report: Report = print) -> dict[tuple[int, Any] | str, list[float]]:
+    """``{(E, kernel_threads): rounds, (E, SPLIT): rounds, "peer": rounds}``
+    (bench_kernel_threads' method: :data:`speed_targets.SPLIT` the 2-process batch)."""
     import warnings
 
     import bench_kernel_threads as kt
 
     warnings.filterwarnings("ignore")
-    rates: dict[tuple[int, int] | str, list[float]] = {"peer": []}
+    rates: dict[tuple[int, Any] | str, list[float]] = {"peer": []}
     for envs in settings.thread_envs:
         vector, rng = kt.make(envs, max(kt.THREADS))
+        split, split_rng = kt.make_split(envs)
         threads_of = vector.unwrapped.batch.world.kernel_threads
-        for threads in kt.THREADS:
-            rates[(envs, threads)] = []
+        for mode in (*kt.THREADS, SPLIT):
+            rates[(envs, mode)] = []
         for round_ in range(settings.thread_rounds):
             for threads in kt.THREADS:
                 threads_of.set(threads)
                 rates[(envs, threads)].append(kt.steps_per_second(vector, rng,
                                                                   settings.thread_steps))
+            rates[(envs, SPLIT)].append(kt.steps_per_second(split, split_rng,
+                                                            settings.thread_steps))
             rates["peer"].append(kt.env_steps_per_second(kt.PEER, settings.peer_steps,
                                                          seed=round_))
             report(f"  E = {envs} round {round_ + 1}: " + ", ".join(
                 f"{t} thread(s) {rates[(envs, t)][-1]:,.0f}" for t in kt.THREADS)
-                + f", {kt.PEER} {rates['peer'][-1]:,.1f} env steps/s")
+                + f", {SPLIT} {rates[(envs, SPLIT)][-1]:,.0f}, {kt.PEER} "
+                f"{rates['peer'][-1]:,.1f} env steps/s")
         vector.close()
+        split.close()
     return rates
 
 
-def thread_lines(rates: dict[tuple[int, int] | str, list[float]]) -> list[str]:
+def thread_lines(rates: dict[tuple[int, Any] | str, list[float]]) -> list[str]:
     from statistics import median
 
     peer = median(rates["peer"])
     lines = ["HighwayLoopBehavior-v0 batch, env steps/s (min / median / max over rounds); "
              "peer highway-fast-v0 (one env)", "",
-             "| E | kernel_threads 1 | kernel_threads 2 | 2 / 1 | 1 thread / peer | "
-             "2 threads / peer |", "|---:|---|---|---:|---:|---:|"]
+             f"| E | kernel_threads 1 | kernel_threads 2 | {SPLIT} | 2 threads / 1 | "
+             f"{SPLIT} / 1 | 1 thread / peer | {SPLIT} / peer |",
+             "|---:|---|---|---|---:|---:|---:|---:|"]
     for envs in sorted({key[0] for key in rates if isinstance(key, tuple)}):
-        one, two = rates[(envs, 1)], rates[(envs, 2)]
-        lines.append(f"| {envs} | {spread(one)} | {spread(two)} | "
-                     f"{median(two) / median(one):.2f}x | {median(one) / peer:,.0f}x | "
-                     f"{median(two) / peer:,.0f}x |")
+        one, two, split = rates[(envs, 1)], rates[(envs, 2)], rates[(envs, SPLIT)]
+        lines.append(f"| {envs} | {spread(one)} | {spread(two)} | {spread(split)} | "
+                     f"{median(two) / median(one):.2f}x | {median(split) / median(one):.2f}x "
+                     f"| {median(one) / peer:,.0f}x | {median(split) / peer:,.0f}x |")
     lines.append(f"peer highway-fast-v0: {spread(rates['peer'], 1)} env steps/s")
     return lines
 

@@ -51,14 +51,29 @@ def test_learner_target_met_and_below_a_reachable_bound() -> None:
     assert targets.learner_target({"env": [1.0]}).met is None  # no learner measured
 
 
+def test_learner_target_of_a_split_learner_is_bounded_by_the_split_env() -> None:
+    rates = {"env": [20_000], "env-split": [36_000], "sb3": [8_000], "sb3-noop": [18_000],
+             "sb3-split": [10_000]}
+    row = targets.learner_target(rates)
+    assert row.measured == "10,000 (sb3-split, median)"
+    # 1 / (1/36,000 + 1/18,000) = 12,000: the split env alone and SB3's own no-op case
+    assert row.reason.startswith("sb3-split's sequential bound 1/(1/env + 1/learner) = "
+                                 "1/(1/36,000 + 1/18,000) = 12,000 < 40,000")
+
+
 def test_threads_target() -> None:
     rates = {(64, 1): [90_000], (64, 2): [150_000],  # E < 256 does not count
              (256, 1): [40_000, 41_000, 39_000], (256, 2): [60_000, 62_000, 58_000],
              (1024, 2): [55_000]}
     row = targets.threads_target(rates)
-    assert row.met is False and row.measured == "60,000 (E = 256, median)"
-    assert "1.50x one thread (40,000)" in row.reason
+    assert row.met is False and row.measured == "60,000 (E = 256, 2 kernel threads, median)"
+    assert "2 kernel threads run 1.50x one thread (40,000)" in row.reason
     assert "2.5x one thread's rate, more than a perfect 2-way split" in row.reason
+    # The process split counts too: the best of the two ways at any E >= 256.
+    split = targets.threads_target({**rates, (256, targets.SPLIT): [75_000, 76_000, 70_000]})
+    assert split.measured == "75,000 (E = 256, 2 processes, median)"
+    assert "2 processes run 1.88x one thread (40,000)" in split.reason
+    assert targets.threads_target({(1024, targets.SPLIT): [100_000]}).met is True
     assert targets.threads_target({(256, 2): [120_000]}).met is True
     assert targets.threads_target({(64, 2): [1e6]}).met is None
     within = targets.threads_target({(256, 1): [60_000], (256, 2): [70_000]})
