@@ -28,6 +28,8 @@ from __future__ import annotations
 import argparse
 import os
 import statistics
+import subprocess
+import sys
 import time
 import warnings
 
@@ -60,6 +62,36 @@ def make(envs: int, threads: int,
         for _ in range(3):
             vector.step(rng.integers(9, size=envs))
     return vector, rng
+
+
+CORE_PROBE = """
+import time
+import numpy as np
+started = time.perf_counter()
+total = 0
+for i in range(4_000_000):
+    total += i * i % 7
+values = np.random.default_rng(0).random((256, 256))
+for _ in range(150):
+    values = np.sin(values) * np.cos(values) + values
+print(time.perf_counter() - started)
+"""
+"""A fixed CPU-bound job (a Python loop, then numpy ufuncs: the two kinds of work of a
+batch step), printing its wall seconds."""
+
+
+def core_scaling(rounds: int = 3) -> list[float]:
+    """Per round, how much work two independent CPU-bound processes get done at once
+    against one alone: ``2 x alone / together`` (2.0: two full cores; about 1.6 on a
+    machine whose two cores slow each other, e.g. shared execution units or clocks). No
+    split of one batch over two cores can beat it."""
+    def run(copies: int) -> float:
+        children = [subprocess.Popen([sys.executable, "-c", CORE_PROBE],
+                                     stdout=subprocess.PIPE, text=True)
+                    for _ in range(copies)]
+        return statistics.mean(float(child.communicate()[0]) for child in children)
+
+    return [2.0 * run(1) / run(2) for _ in range(rounds)]
 
 
 def make_split(envs: int, seed: int = 0) -> tuple[gym.vector.VectorEnv, np.random.Generator]:
@@ -137,6 +169,10 @@ def main() -> None:
               f"{ms / m1:.2f}x | {m1 / peer:,.0f}x | {ms / peer:,.0f}x |")
     print(f"\n{PEER} (one env, the peer, every round of every E): {cells(rates[PEER])} "
           "env steps/s")
+    scaling = core_scaling(args.rounds)
+    print(f"this machine's two cores: two independent CPU-bound processes at once do "
+          f"{' / '.join(f'{value:.2f}' for value in sorted(scaling))}x the work of one alone "
+          "(min / median / max; the ceiling of any 2-way split)")
 
 
 if __name__ == "__main__":

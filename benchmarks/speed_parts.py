@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from learner_time_to_mph import DEFAULT_TARGET_MPH, Race, race_table  # noqa: E402
-from speed_targets import SPLIT, sequential_bound, spread  # noqa: E402
+from speed_targets import CORES, SPLIT, sequential_bound, spread  # noqa: E402
 
 SCALAR_COMMIT = "4bba301"
 """The last commit with the scalar track code (docs/batched.md: ``--before`` of 054b497)."""
@@ -58,7 +58,7 @@ class Settings:
     race_learners: tuple[str, ...] = ("sb3", "rllib", "torchrl", "pufferlib")
     thread_envs: tuple[int, ...] = (64, 256, 1024)
     thread_rounds: int = 3
-    thread_steps: int = 20_000
+    thread_steps: int = 60_000
     peer_steps: int = 100
     cold_cases: tuple[str, ...] = ("highway", "behavior", "track", "track_behavior")
     cold_steps: int = 50
@@ -216,8 +216,9 @@ def learner_lines(result: LearnerResult) -> list[str]:
 # ------------------------------------------------------------------ threads
 def measure_threads(settings: Settings,
                     report: Report = print) -> dict[tuple[int, Any] | str, list[float]]:
-    """``{(E, kernel_threads): rounds, (E, SPLIT): rounds, "peer": rounds}``
-    (bench_kernel_threads' method: :data:`speed_targets.SPLIT` the 2-process batch)."""
+    """``{(E, kernel_threads): rounds, (E, SPLIT): rounds, "peer": rounds, CORES: rounds}``
+    (bench_kernel_threads' method: :data:`speed_targets.SPLIT` the 2-process batch,
+    :data:`speed_targets.CORES` the machine's two-core scaling, ``core_scaling``)."""
     import warnings
 
     import bench_kernel_threads as kt
@@ -245,6 +246,8 @@ def measure_threads(settings: Settings,
                 f"{rates['peer'][-1]:,.1f} env steps/s")
         vector.close()
         split.close()
+    rates[CORES] = kt.core_scaling(settings.thread_rounds)
+    report(f"  two independent CPU-bound processes at once: {spread(rates[CORES], 2)}x one")
     return rates
 
 
@@ -263,6 +266,10 @@ def thread_lines(rates: dict[tuple[int, Any] | str, list[float]]) -> list[str]:
                      f"{median(two) / median(one):.2f}x | {median(split) / median(one):.2f}x "
                      f"| {median(one) / peer:,.0f}x | {median(split) / peer:,.0f}x |")
     lines.append(f"peer highway-fast-v0: {spread(rates['peer'], 1)} env steps/s")
+    if rates.get(CORES):
+        lines.append(f"this machine's two cores: two independent CPU-bound processes at once "
+                     f"do {spread(rates[CORES], 2)}x the work of one alone (the ceiling of any "
+                     "2-way split)")
     return lines
 
 

@@ -61,7 +61,8 @@ def judge(results: dict[str, Any]) -> list[targets.Target]:
     cold, track = results.get("cold"), results.get("track")
     rows = [targets.learner_target(learners.rates if learners else {}),
             targets.threads_target({key: value for key, value in (threads or {}).items()
-                                    if isinstance(key, tuple)}),
+                                    if isinstance(key, tuple)},
+                                   scaling=(threads or {}).get(targets.CORES)),
             targets.cold_target(cold.first_cpu if cold else {},
                                 cold.warm_cpu if cold else None,
                                 cold.compiles if cold else None),

@@ -78,6 +78,10 @@ def test_threads_target() -> None:
     assert targets.threads_target({(64, 2): [1e6]}).met is None
     within = targets.threads_target({(256, 1): [60_000], (256, 2): [70_000]})
     assert "within a perfect 2-way split" in within.reason
+    # Measured two-core scaling bounds the split: 1.6 x 60,000 = 96,000 < 100,000.
+    bounded = targets.threads_target({(256, 1): [60_000], (256, 2): [70_000]},
+                                     scaling=[1.5, 1.6, 1.7])
+    assert "more than a perfect split on this machine (1.60x" in bounded.reason
 
 
 def test_cold_target() -> None:
