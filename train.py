@@ -152,10 +152,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                              "same samples bit for bit (both cores step the envs while the "
                              "learner waits); subprocess: one process per env")
     parser.add_argument("--torch-threads", type=int, default=1,
-                        help="torch threads in the learner (small MLPs: 1 is fastest, and "
-                             "the env processes keep the other cores)")
+                        help="torch threads in the learner's update (small MLPs: 1 is "
+                             "fastest, and the env processes keep the other cores; large "
+                             "minibatches gain from 2). With more than 1, SB3 collects on 1 "
+                             "thread (torch's idle threads would spin on the envs' cores)")
     args = parser.parse_args(argv)
-    for name in ("timesteps", "n_envs", "checkpoint_every"):
+    for name in ("timesteps", "n_envs", "checkpoint_every", "torch_threads"):
         value = getattr(args, name)
         if value is not None and value < 1:
             parser.error(f"--{name.replace('_', '-')} must be >= 1, got {value}")
@@ -430,7 +432,7 @@ def main(argv: list[str] | None = None) -> Path:
     from stable_baselines3.common.callbacks import CallbackList, ProgressBarCallback
 
     args = parse_args(argv)
-    torch.set_num_threads(max(args.torch_threads, 1))
+    torch.set_num_threads(args.torch_threads)
     config = run_config(args)  # every value checked, the env config too, before any process
     args.output.mkdir(parents=True, exist_ok=True)
     for stale in remove_stale_temporaries(args.output):  # a killed run's half files
@@ -498,6 +500,10 @@ def main(argv: list[str] | None = None) -> Path:
             every=max(int(validation["every"]) // config["n_envs"], 1),
             episodes=int(validation["episodes"]), seed=int(validation["seed"]),
             average=average))
+    if args.torch_threads > 1:
+        from sdc_training.torch_threads import phase_threads_callback
+
+        callbacks.append(phase_threads_callback(args.torch_threads))
     if not args.no_progress:
         callbacks.append(ProgressBarCallback())
     remaining = config["timesteps"] - model.num_timesteps

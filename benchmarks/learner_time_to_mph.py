@@ -13,6 +13,9 @@ episodes) with ``--algo ppo``:
   rollout still holds the project's 2,048 samples (``bench_learners.py``'s settings; built
   by ``train.run_config`` and ``train.make_vec_env``, as ``train.py --n-envs E --hp
   n_steps=...`` would);
+* ``sb3-large``: the same at throughput settings (:data:`LARGE`: 1,024 envs split over
+  two worker processes, rollouts of 8,192, minibatches of 2,048, torch on 2 threads in the
+  update; ``--envs`` does not apply);
 * ``rllib``: RLlib PPO as ``train.py --framework rllib --n-envs 1`` builds it
   (``configs/hyperparams/rllib_ppo.yaml``: the same rollout, minibatches and epochs; one
   env sampled in the learner's process, on a local Ray cluster started for the race);
@@ -70,7 +73,7 @@ DEFAULT_TARGET_MPH = 44.0
 DEFAULT_BUDGET_S = 240.0
 DEFAULT_CHECK_EVERY = 32_768
 DEFAULT_LAPS = 4
-LEARNERS = ("sb3", "rllib", "torchrl", "pufferlib")
+LEARNERS = ("sb3", "sb3-large", "rllib", "torchrl", "pufferlib")
 OPTIONAL = {"torchrl": "pip install --no-deps torchrl==0.14.1 tensordict==0.15.3 pyvers",
             "pufferlib": "pip install --no-deps pufferlib-core==3.0.23 psutil pyro-ppl "
                          "pyro-api opt_einsum rich_argparse"}
@@ -180,28 +183,43 @@ def run_config(framework: str, n_envs: int, seed: int, extra: Sequence[str] = ()
         return train.run_config(args)
 
 
-class SB3Learner:
-    """SB3 PPO as train.py builds it, on a native batch of ``n_envs`` envs."""
+LARGE = {"n_envs": 1024, "n_steps": 8, "batch_size": 2048, "threads": 2}
+"""``sb3-large``: SB3 PPO at throughput settings (docs/speed.md): 1,024 envs split over two
+worker processes (``train.py --vectorize split``), 8 steps per env per rollout (8,192
+samples), minibatches of 2,048, torch on 2 threads in the update (1 while collecting)."""
 
-    def __init__(self, n_envs: int, seed: int, threads: int = 1) -> None:
+
+class SB3Learner:
+    """SB3 PPO as train.py builds it, on a native batch of ``n_envs`` envs (``large``: the
+    :data:`LARGE` settings instead, ``n_envs`` ignored)."""
+
+    def __init__(self, n_envs: int, seed: int, threads: int = 1, large: bool = False) -> None:
         import torch
         from learner_settings import ppo_settings
 
         import train
         from sdc_agents.policy_agent import algorithm_class
         from sdc_gym.validation.run_config import resolved_policy_kwargs
+        from sdc_training.torch_threads import phase_threads_callback
 
+        if large:
+            n_envs, threads = LARGE["n_envs"], LARGE["threads"]
+            extra = ["--hp", f"n_steps={LARGE['n_steps']}",
+                     "--hp", f"batch_size={LARGE['batch_size']}"]
+        else:  # the project's rollout size over E
+            extra = ["--hp", f"n_steps={ppo_settings(n_envs)['n_steps']}"]
         torch.set_num_threads(threads)
-        n_steps = ppo_settings(n_envs)["n_steps"]  # the project's rollout size over E
-        self.config = run_config("sb3", n_envs, seed, ["--hp", f"n_steps={n_steps}"])
-        self.vec = train.make_vec_env(self.config, n_envs, seed)
+        self.config = run_config("sb3", n_envs, seed, extra)
+        self.vec = train.make_vec_env(self.config, n_envs, seed,
+                                      "split" if large else "batch")
+        self.callback = phase_threads_callback(threads) if threads > 1 else None
         hyper = dict(self.config["hyperparams"])
         policy = hyper.pop("policy", "MlpPolicy")
         self.model = algorithm_class("ppo")(policy, self.vec, seed=seed, verbose=0,
                                             device="cpu", **resolved_policy_kwargs(hyper))
 
     def train(self, samples: int) -> int:
-        self.model.learn(samples, reset_num_timesteps=False)
+        self.model.learn(samples, reset_num_timesteps=False, callback=self.callback)
         return int(self.model.num_timesteps)
 
     def policy(self) -> Any:
@@ -270,9 +288,11 @@ class _Restoring:
 def make_learner(name: str, n_envs: int, seed: int, threads: int) -> Learner:
     if name == "sb3":
         return SB3Learner(n_envs, seed, threads)
+    if name == "sb3-large":
+        return SB3Learner(n_envs, seed, large=True)
     if name == "rllib":
         return RLlibLearner(seed, threads)
-    raise ValueError(f"no race for learner {name!r}; valid: sb3, rllib")
+    raise ValueError(f"no race for learner {name!r}; valid: sb3, sb3-large, rllib")
 
 
 def skip_reason(name: str) -> str | None:

@@ -55,7 +55,7 @@ class Settings:
     race_check_every: int = 32_768
     race_laps: int = 4
     target_mph: float = DEFAULT_TARGET_MPH
-    race_learners: tuple[str, ...] = ("sb3", "rllib", "torchrl", "pufferlib")
+    race_learners: tuple[str, ...] = ("sb3", "sb3-large", "rllib", "torchrl", "pufferlib")
     thread_envs: tuple[int, ...] = (64, 256, 1024)
     thread_rounds: int = 3
     thread_steps: int = 60_000

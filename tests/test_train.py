@@ -233,3 +233,38 @@ def test_vectorize_split_trains_the_same_model_as_one_batch(tmp_path):
     assert weights[0].keys() == weights[1].keys()
     for key, value in weights[0].items():
         assert value.equal(weights[1][key]), key
+
+
+def test_torch_threads_by_phase_one_while_collecting_all_while_updating():
+    """--torch-threads N > 1: torch runs 1 thread while the envs step and N in the update
+    (train.py adds the callback); 0 is refused, not coerced."""
+    import torch
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+
+    from sdc_gym.envs.sb3 import SB3VecEnv
+    from sdc_training.torch_threads import phase_threads_callback
+
+    seen: dict[str, set[int]] = {"collect": set(), "update": set()}
+
+    class Probe(BaseCallback):
+        def _on_step(self) -> bool:
+            seen["collect"].add(torch.get_num_threads())
+            return True
+
+        def _on_rollout_end(self) -> None:  # after PhaseThreads' own (it comes first)
+            seen["update"].add(torch.get_num_threads())
+
+    before = torch.get_num_threads()
+    try:
+        vec = SB3VecEnv("sdc_gym/HighwayLoopBehavior-v0", 2, {"highway": {"max_duration": 8.0}})
+        model = PPO("MlpPolicy", vec, n_steps=16, batch_size=32, n_epochs=1, seed=0,
+                    device="cpu")
+        model.learn(64, callback=CallbackList([phase_threads_callback(2), Probe()]))
+        vec.close()
+        assert seen == {"collect": {1}, "update": {2}}
+        assert torch.get_num_threads() == 2  # left at the update's count
+    finally:
+        torch.set_num_threads(before)
+    with pytest.raises(SystemExit):
+        train.parse_args(["--torch-threads", "0"])

@@ -1,0 +1,38 @@
+"""torch's threads by phase: one while the envs step, all of them while the learner updates.
+
+With the batch split over worker processes (``train.py --vectorize split``) the envs use
+both cores during collection. torch's intra-op threads, once woken for the policy's forward
+pass, spin for a while waiting for more work, and take CPU from those workers; during the
+update the envs are idle and the threads are what makes it fast. Measured on the 2-core
+machine (SB3 PPO, E = 1024 split over 2 processes, 8 steps per rollout, minibatches of
+2,048, torch on 2 threads; docs/speed.md): 31,366 samples/s with 2 threads throughout,
+34,051 with this callback.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+def phase_threads_callback(update_threads: int) -> Any:
+    """An SB3 callback: ``torch.set_num_threads(1)`` at each rollout's start,
+    ``update_threads`` at its end (when the update begins)."""
+    import torch
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    class PhaseThreads(BaseCallback):
+        """torch on 1 thread while collecting, ``update_threads`` while updating."""
+
+        def _on_rollout_start(self) -> None:
+            torch.set_num_threads(1)
+
+        def _on_rollout_end(self) -> None:
+            torch.set_num_threads(update_threads)
+
+        def _on_step(self) -> bool:
+            return True
+
+        def _on_training_end(self) -> None:
+            torch.set_num_threads(update_threads)
+
+    return PhaseThreads()
