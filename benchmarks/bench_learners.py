@@ -23,7 +23,12 @@ samples after a warm-up rollout:
 * each ``*-noop`` case: the same learner on a no-op env of the same spaces (zeros for
   observations, no episode end): the learner's own cost, its ceiling on this machine;
 * ``env``, ``env-kt2``: the env alone, random actions on the native batch, its kernels on
-  one thread and on two (the behavior env's ``highway.kernel_threads: 2``).
+  one thread and on two (the behavior env's ``highway.kernel_threads: 2``);
+* ``env-split``, ``sb3-split``: the batch split over two worker processes
+  (``train.py --vectorize split``), alone and under SB3's PPO;
+* ``env-large``, ``sb3-large``, ``sb3-large-noop``: SB3's PPO at throughput settings
+  (``learner_settings.LARGE``: 1,024 envs split over two processes, rollouts of 8,192,
+  minibatches of 2,048, torch on 2 threads in the update), whatever ``--envs`` says.
 
 The rate printed is min/median/max over ``--rounds`` rounds (rounds interleave the cases, so
 the shared machine's load hits them alike), with the ratio of medians to ``sb3``. Then the
@@ -57,7 +62,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 
-from learner_settings import ENV_ID, OVERRIDES, NoopVecEnv, ppo_settings, tanh_mlp
+from learner_settings import (
+    ENV_ID,
+    LARGE,
+    LARGE_SAMPLES,
+    OVERRIDES,
+    NoopVecEnv,
+    ppo_settings,
+    tanh_mlp,
+)
 from learners_pufferlib import COLLECTION_SHARE, puffer_importable
 from speed_targets import sequential_bound
 
@@ -88,12 +101,17 @@ def env_rate(n_envs: int, samples: int, kernel_threads: int, processes: int = 1)
 
 
 def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int,
-             processes: int = 1) -> float:
+             processes: int = 1, large: bool = False) -> float:
+    """SB3's PPO (``large``: at :data:`learner_settings.LARGE`, E and threads ignored)."""
     import torch
     from stable_baselines3 import PPO
 
     from sdc_gym.envs.sb3 import SB3VecEnv
+    from sdc_training.torch_threads import phase_threads_callback
 
+    if large:
+        n_envs, threads, processes = LARGE["n_envs"], LARGE["threads"], LARGE["processes"]
+        samples = max(samples, LARGE_SAMPLES)
     torch.set_num_threads(threads)
     if noop:
         from bench_batched import NullVecEnv  # SB3's own cost: bench_batched's ceiling
@@ -102,11 +120,14 @@ def sb3_rate(n_envs: int, samples: int, noop: bool, threads: int,
     else:
         vec = SB3VecEnv(ENV_ID, n_envs, processes=processes)
     hyper = ppo_settings(n_envs)
+    if large:
+        hyper.update(n_steps=LARGE["n_steps"], batch_size=LARGE["batch_size"])
+    callback = phase_threads_callback(threads) if threads > 1 else None
     model = PPO("MlpPolicy", vec, seed=0, verbose=0, device="cpu", **hyper)
     rollout = n_envs * hyper["n_steps"]
-    model.learn(rollout)  # warm-up rollout and update
+    model.learn(rollout, callback=callback)  # warm-up rollout and update
     started = time.perf_counter()
-    model.learn(samples, reset_num_timesteps=False)
+    model.learn(samples, reset_num_timesteps=False, callback=callback)
     wall = time.perf_counter() - started
     vec.close()
     return samples / wall
@@ -236,6 +257,16 @@ def env_split_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float
     return env_rate(n_envs, samples, 1, processes=2)
 
 
+def env_large_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    return env_rate(LARGE["n_envs"], max(samples, LARGE_SAMPLES), 1,
+                    processes=LARGE["processes"])
+
+
+def sb3_large_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
+    """SB3's PPO at throughput settings (:data:`learner_settings.LARGE`)."""
+    return sb3_rate(n_envs, samples, noop, threads, large=True)
+
+
 def sb3_split_rate(n_envs: int, samples: int, noop: bool, threads: int) -> float:
     """SB3's PPO collecting from the batch split over two worker processes
     (``train.py --vectorize split``): both cores step the envs while the learner waits."""
@@ -247,6 +278,8 @@ CASES = {
     "env-split": (env_split_rate, False),
     "sb3": (sb3_rate, False), "sb3-noop": (sb3_rate, True),
     "sb3-split": (sb3_split_rate, False),
+    "env-large": (env_large_rate, False),
+    "sb3-large": (sb3_large_rate, False), "sb3-large-noop": (sb3_large_rate, True),
     "torchrl": (torchrl_rate, False), "torchrl-noop": (torchrl_rate, True),
     "pufferlib": (pufferlib_rate, False), "pufferlib-noop": (pufferlib_rate, True),
     "pufferlib-kt2": (pufferlib_kt2_rate, False),
@@ -259,6 +292,7 @@ OPTIONAL = {"torchrl": "torchrl", "pufferlib": "pufferlib"}
 BOUNDS = {
     "sb3": ("sb3-noop", ("env",)),
     "sb3-split": ("sb3-noop", ("env-split",)),
+    "sb3-large": ("sb3-large-noop", ("env-large",)),
     "torchrl": ("torchrl-noop", ("env",)),
     "pufferlib": ("pufferlib-noop", ("env", "env-kt2")),
     "pufferlib-kt2": ("pufferlib-noop", ("env-kt2",)),

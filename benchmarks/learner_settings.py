@@ -14,6 +14,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import train
 
 ENV_ID = "sdc_gym/HighwayLoopBehavior-v0"
+LARGE = {"n_envs": 1024, "n_steps": 8, "batch_size": 2048, "threads": 2, "processes": 2}
+"""SB3 PPO at throughput settings (the ``*-large`` cases and ``sb3-large`` race; docs/speed.md):
+1,024 envs split over two worker processes (``train.py --vectorize split``), 8 steps per env
+per rollout (8,192 samples), minibatches of 2,048, torch on 2 threads in the update (1
+while collecting: ``sdc_training.torch_threads``)."""
+LARGE_SAMPLES = 65_536
+"""Samples timed per ``*-large`` case at least (8 rollouts)."""
 
 
 OVERRIDES: dict[str, Any] = {}

@@ -13,7 +13,7 @@ episodes) with ``--algo ppo``:
   rollout still holds the project's 2,048 samples (``bench_learners.py``'s settings; built
   by ``train.run_config`` and ``train.make_vec_env``, as ``train.py --n-envs E --hp
   n_steps=...`` would);
-* ``sb3-large``: the same at throughput settings (:data:`LARGE`: 1,024 envs split over
+* ``sb3-large``: the same at throughput settings (``learner_settings.LARGE``: 1,024 envs split over
   two worker processes, rollouts of 8,192, minibatches of 2,048, torch on 2 threads in the
   update; ``--envs`` does not apply);
 * ``rllib``: RLlib PPO as ``train.py --framework rllib --n-envs 1`` builds it
@@ -183,19 +183,13 @@ def run_config(framework: str, n_envs: int, seed: int, extra: Sequence[str] = ()
         return train.run_config(args)
 
 
-LARGE = {"n_envs": 1024, "n_steps": 8, "batch_size": 2048, "threads": 2}
-"""``sb3-large``: SB3 PPO at throughput settings (docs/speed.md): 1,024 envs split over two
-worker processes (``train.py --vectorize split``), 8 steps per env per rollout (8,192
-samples), minibatches of 2,048, torch on 2 threads in the update (1 while collecting)."""
-
-
 class SB3Learner:
     """SB3 PPO as train.py builds it, on a native batch of ``n_envs`` envs (``large``: the
-    :data:`LARGE` settings instead, ``n_envs`` ignored)."""
+    ``learner_settings.LARGE`` settings instead, ``n_envs`` ignored)."""
 
     def __init__(self, n_envs: int, seed: int, threads: int = 1, large: bool = False) -> None:
         import torch
-        from learner_settings import ppo_settings
+        from learner_settings import LARGE, ppo_settings
 
         import train
         from sdc_agents.policy_agent import algorithm_class
@@ -211,7 +205,7 @@ class SB3Learner:
         torch.set_num_threads(threads)
         self.config = run_config("sb3", n_envs, seed, extra)
         self.vec = train.make_vec_env(self.config, n_envs, seed,
-                                      "split" if large else "batch")
+                                      "split" if large else "batch")  # LARGE: 2 processes
         self.callback = phase_threads_callback(threads) if threads > 1 else None
         hyper = dict(self.config["hyperparams"])
         policy = hyper.pop("policy", "MlpPolicy")

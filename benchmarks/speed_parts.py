@@ -56,9 +56,9 @@ class Settings:
     race_laps: int = 4
     target_mph: float = DEFAULT_TARGET_MPH
     race_learners: tuple[str, ...] = ("sb3", "sb3-large", "rllib", "torchrl", "pufferlib")
-    thread_envs: tuple[int, ...] = (64, 256, 1024)
+    thread_envs: tuple[int, ...] = (64, 256, 1024, 4096)
     thread_rounds: int = 3
-    thread_steps: int = 60_000
+    thread_steps: int = 120_000
     peer_steps: int = 100
     cold_cases: tuple[str, ...] = ("highway", "behavior", "track", "track_behavior")
     cold_steps: int = 50
@@ -107,7 +107,8 @@ def learner_cases() -> tuple[list[str], list[str]]:
     each importable learner with its no-op case, RLlib (no no-op case) when Ray imports."""
     from learners_pufferlib import puffer_importable
 
-    cases, notes = ["env", "env-split", "sb3", "sb3-noop", "sb3-split"], []
+    cases, notes = ["env", "env-split", "env-large", "sb3", "sb3-noop", "sb3-split",
+                    "sb3-large", "sb3-large-noop"], []
     if importlib.util.find_spec("torchrl") is not None:
         cases += ["torchrl", "torchrl-noop"]
     else:

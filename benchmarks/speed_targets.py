@@ -88,12 +88,13 @@ def learner_target(rates: Mapping[str, Sequence[float]], goal: float = PPO_GOAL,
     name = f"PPO >= {goal:,.0f} samples/s end to end"
     if learners[best] >= goal:
         return Target(name, measured, True)
-    # A "-split" learner (its env split over two worker processes) is bounded by the split
-    # env alone and its learner's own no-op case.
-    split = best.endswith("-split")
-    env_case = f"{env_case}-split" if split else env_case
+    # A learner case "X-suffix" (its env split, or other settings) is bounded by the env
+    # case "env-suffix" when measured, and by its own no-op case, else X's.
+    base, _, suffix = best.partition("-")
+    if suffix and f"{env_case}-{suffix}" in rates:
+        env_case = f"{env_case}-{suffix}"
     env = rates.get(env_case)
-    noop = rates.get(f"{best.removesuffix('-split')}-noop")
+    noop = rates.get(f"{best}-noop") or rates.get(f"{base}-noop")
     if not env or not noop:
         return Target(name, measured, False,
                       f"below the goal; no '{env_case}' and '{best}-noop' cases to bound it")

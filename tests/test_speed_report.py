@@ -59,6 +59,12 @@ def test_learner_target_of_a_split_learner_is_bounded_by_the_split_env() -> None
     # 1 / (1/36,000 + 1/18,000) = 12,000: the split env alone and SB3's own no-op case
     assert row.reason.startswith("sb3-split's sequential bound 1/(1/env + 1/learner) = "
                                  "1/(1/36,000 + 1/18,000) = 12,000 < 40,000")
+    # The large settings: their own env case and their own no-op case.
+    large = targets.learner_target({**rates, "env-large": [90_000], "sb3-large": [33_000],
+                                    "sb3-large-noop": [90_000]})
+    assert large.measured == "33,000 (sb3-large, median)"
+    assert "below its sequential bound 45,000 (env 90,000, learner 90,000)" in large.reason
+    assert "0.73 of it" in large.reason
 
 
 def test_threads_target() -> None:
