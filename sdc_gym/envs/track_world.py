@@ -431,39 +431,44 @@ class TrackWorld:
 
     def observation(self, env: int) -> dict[str, Any]:
         """Env ``env``'s ``TrackLoop-v0`` observation (new arrays)."""
-        batch = self.observations(slice(env, env + 1))  # views: no index array
-        observation = {key: value[0] for key, value in batch.items()}
-        observation["dbw_enabled"] = int(observation["dbw_enabled"])
-        return observation
+        return self.observations(env)
 
-    def observations(self, rows: NDArray[np.int64] | slice | None = None) -> dict[str, Any]:
+    def observations(self, rows: NDArray[np.int64] | slice | int | None = None
+                     ) -> dict[str, Any]:
         """The ``TrackLoop-v0`` observations of envs ``rows`` (default: all; an index
-        array or a slice), each key's values stacked along a leading axis (new arrays)."""
+        array or a slice), each key's values stacked along a leading axis (new arrays);
+        ``rows`` an int: that env's own observation, no leading axis (the single env's
+        step, so it indexes one row instead of slicing a batch of one)."""
         st, setup = self.state, self.setup
         rows = slice(None) if rows is None else rows
-        envs = range(self.envs)[rows] if isinstance(rows, slice) else rows.tolist()
+        one = isinstance(rows, int | np.integer)
         # The columns as float64 (the line index cast as a stack would), then float32;
         # filled in place, which costs a fraction of np.column_stack for one env.
-        columns = np.empty((len(envs), 7))
-        columns[:, 0:5] = st.vehicle[rows][:, _OBSERVED_CAR_COLUMNS]
-        columns[:, 5] = st.next_line[rows]
-        columns[:, 6] = st.line_distance[rows]
+        columns = np.empty((7,) if one else (len(range(self.envs)[rows]) if isinstance(
+            rows, slice) else len(rows), 7))
+        columns[..., 0:5] = st.vehicle[rows][..., _OBSERVED_CAR_COLUMNS]
+        columns[..., 5] = st.next_line[rows]
+        columns[..., 6] = st.line_distance[rows]
         values = columns.astype(np.float32)
         observation: dict[str, Any] = {
-            "pose": values[:, 0:3],
-            "velocity": values[:, 3:4],
-            "yaw_rate": values[:, 4:5],
-            "dbw_enabled": st.dbw_enabled[rows].astype(np.int64),
-            "next_stop_line": values[:, 5:7],
+            "pose": values[..., 0:3],
+            "velocity": values[..., 3:4],
+            "yaw_rate": values[..., 4:5],
+            "dbw_enabled": (int(st.dbw_enabled[rows]) if one
+                            else st.dbw_enabled[rows].astype(np.int64)),
+            "next_stop_line": values[..., 5:7],
         }
         if self.config["observe_light_states"]:
             observation["light_states"] = st.light_states[rows].copy()
         if setup.camera is not None:
-            observation["camera"] = np.stack([setup.camera.render(
+            envs = [rows] if one else (range(self.envs)[rows] if isinstance(rows, slice)
+                                       else rows.tolist())
+            images = [setup.camera.render(
                 float(st.vehicle[env, X]), float(st.vehicle[env, Y]),
                 float(st.vehicle[env, YAW]), self.track.light_positions,
                 self.track.light_yaw, st.light_states[env], self.camera_rngs[env])
-                for env in envs])
+                for env in envs]
+            observation["camera"] = images[0] if one else np.stack(images)
         if setup.obstacle_count:
             observation["obstacles"] = st.obstacles[rows].astype(np.float32)
         return observation
