@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "benchmarks")]
 
 from learner_time_to_mph import DEFAULT_TARGET_MPH, Race, race_table  # noqa: E402
-from speed_targets import CORES, SPLIT, sequential_bound, spread  # noqa: E402
+from speed_targets import CORES, SPLIT, bound_cases, sequential_bound, spread  # noqa: E402
 
 SCALAR_COMMIT = "4bba301"
 """The last commit with the scalar track code (docs/batched.md: ``--before`` of 054b497)."""
@@ -198,17 +198,21 @@ def learner_lines(result: LearnerResult) -> list[str]:
         if values:
             ratio = f"{median(values) / base:.2f}" if base else "-"
             lines.append(f"| {case} | {spread(values)} | {ratio} |")
-    bounds = [(case, median(values), median(result.rates[f"{case}-noop"]))
-              for case, values in result.rates.items()
-              if values and result.rates.get(f"{case}-noop") and result.rates.get("env")]
-    if bounds:
-        env = median(result.rates["env"])
-        lines += ["", "| learner | env alone | learner alone | sequential bound | end to end "
-                  "| / bound |", "|---|---:|---:|---:|---:|---:|"]
-        for case, end, own in bounds:
+    rows = []
+    for case, values in result.rates.items():
+        if not values or case.startswith("env") or case.endswith("-noop"):
+            continue
+        env_case, noop_case = bound_cases(result.rates, case)
+        if result.rates.get(env_case) and result.rates.get(noop_case):
+            rows.append((case, env_case, median(result.rates[env_case]),
+                         median(result.rates[noop_case]), median(values)))
+    if rows:
+        lines += ["", "| learner | env case | env alone | learner alone | sequential bound | "
+                  "end to end | / bound |", "|---|---|---:|---:|---:|---:|---:|"]
+        for case, env_case, env, own, end in rows:
             bound = sequential_bound(env, own)
-            lines.append(f"| {case} | {env:,.0f} | {own:,.0f} | {bound:,.0f} | {end:,.0f} | "
-                         f"{end / bound:.2f} |")
+            lines.append(f"| {case} | {env_case} | {env:,.0f} | {own:,.0f} | {bound:,.0f} | "
+                         f"{end:,.0f} | {end / bound:.2f} |")
     lines += ["", "Time to the target mean mph (validation laps, seeds from 2000)", "",
               *race_table(result.races), *result.notes]
     return lines

@@ -74,6 +74,18 @@ def sequential_bound(env_rate: float, learner_rate: float) -> float:
     return 1.0 / (1.0 / env_rate + 1.0 / learner_rate)
 
 
+def bound_cases(rates: Mapping[str, Sequence[float]], learner: str,
+                env_case: str = "env") -> tuple[str, str]:
+    """The env case and the no-op case that bound learner case ``learner``: a case
+    ``X-suffix`` (its env split, or other settings) is bounded by ``env-suffix`` when that
+    was measured (else ``env``) and by ``X-suffix-noop`` when measured (else ``X-noop``)."""
+    base, _, suffix = learner.partition("-")
+    if suffix and rates.get(f"{env_case}-{suffix}"):
+        env_case = f"{env_case}-{suffix}"
+    noop_case = f"{learner}-noop" if rates.get(f"{learner}-noop") else f"{base}-noop"
+    return env_case, noop_case
+
+
 def learner_target(rates: Mapping[str, Sequence[float]], goal: float = PPO_GOAL,
                    env_case: str = "env") -> Target:
     """The PPO target from ``bench_learners``-style cases: learners ``X`` with their no-op
@@ -88,13 +100,8 @@ def learner_target(rates: Mapping[str, Sequence[float]], goal: float = PPO_GOAL,
     name = f"PPO >= {goal:,.0f} samples/s end to end"
     if learners[best] >= goal:
         return Target(name, measured, True)
-    # A learner case "X-suffix" (its env split, or other settings) is bounded by the env
-    # case "env-suffix" when measured, and by its own no-op case, else X's.
-    base, _, suffix = best.partition("-")
-    if suffix and f"{env_case}-{suffix}" in rates:
-        env_case = f"{env_case}-{suffix}"
-    env = rates.get(env_case)
-    noop = rates.get(f"{best}-noop") or rates.get(f"{base}-noop")
+    env_case, noop_case = bound_cases(rates, best, env_case)
+    env, noop = rates.get(env_case), rates.get(noop_case)
     if not env or not noop:
         return Target(name, measured, False,
                       f"below the goal; no '{env_case}' and '{best}-noop' cases to bound it")

@@ -171,3 +171,16 @@ def test_quick_track_part_reports_a_ratio() -> None:
     assert re.search(r"^\| single TrackLoop-v0 env >= the scalar code \| \d+\.\d\dx \(", report,
                      re.MULTILINE), report
     assert rows[3].met in (True, False)  # either, on a shared machine: measured, not asserted
+
+
+def test_learner_lines_bound_each_learner_by_its_own_env_and_noop_cases() -> None:
+    result = speed_parts.LearnerResult(rates={
+        "env": [50_000], "env-split": [40_000], "env-large": [90_000], "sb3": [15_000],
+        "sb3-noop": [25_000], "sb3-split": [12_000], "sb3-large": [36_000],
+        "sb3-large-noop": [90_000], "rllib": [800]})
+    lines = speed_parts.learner_lines(result)
+    # 1/(1/50,000 + 1/25,000) = 16,667; 1/(1/40,000 + 1/25,000) = 15,385; 45,000
+    assert "| sb3 | env | 50,000 | 25,000 | 16,667 | 15,000 | 0.90 |" in lines
+    assert "| sb3-split | env-split | 40,000 | 25,000 | 15,385 | 12,000 | 0.78 |" in lines
+    assert "| sb3-large | env-large | 90,000 | 90,000 | 45,000 | 36,000 | 0.80 |" in lines
+    assert not any(line.startswith("| rllib | env") for line in lines)  # no no-op case

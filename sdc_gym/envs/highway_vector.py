@@ -16,7 +16,6 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
@@ -26,7 +25,7 @@ from sdc_gym.envs.highway_behavior import behavior_spaces
 from sdc_gym.envs.highway_behavior_world import HighwayBehaviorWorld
 from sdc_gym.envs.highway_loop import highway_spaces
 from sdc_gym.envs.highway_world import HighwayWorld
-from sdc_gym.envs.split_vector import split_or_batch
+from sdc_gym.envs.split_vector import vector_entry_point
 from sdc_gym.scenarios.options import OPTION
 from sdc_gym.stack.highway.decisions import ACTION_NAMES
 from sdc_gym.validation.actions import discrete_indices, real_array
@@ -143,17 +142,7 @@ class HighwayLoopVectorEnv(BatchVectorEnv):
         return self.world.is_success(env)
 
 
-def make_behavior_vector_env(num_envs: int = 1, processes: int = 1,
-                             **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/HighwayLoopBehavior-v0``: one batch in this process, or
-    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
-    return split_or_batch("sdc_gym/HighwayLoopBehavior-v0", HighwayLoopBehaviorVectorEnv, num_envs,
-                          processes, kwargs)
-
-
-def make_highway_vector_env(num_envs: int = 1, processes: int = 1,
-                            **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/HighwayLoop-v0``: one batch in this process, or
-    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
-    return split_or_batch("sdc_gym/HighwayLoop-v0", HighwayLoopVectorEnv, num_envs,
-                          processes, kwargs)
+make_behavior_vector_env = vector_entry_point(
+    "sdc_gym/HighwayLoopBehavior-v0", HighwayLoopBehaviorVectorEnv)
+make_highway_vector_env = vector_entry_point(
+    "sdc_gym/HighwayLoop-v0", HighwayLoopVectorEnv)

@@ -28,6 +28,7 @@ import os
 import socket
 import subprocess
 import sys
+from collections.abc import Callable
 from multiprocessing.connection import Connection
 from typing import Any
 
@@ -255,3 +256,16 @@ def split_or_batch(env_id: str, batch: type[VectorEnv], num_envs: int, processes
         return batch(num_envs, **kwargs)
     return SplitVectorEnv(env_id, registry[env_id].vector_entry_point, num_envs, processes,
                           **kwargs)
+
+
+def vector_entry_point(env_id: str, batch: type[VectorEnv]) -> Callable[..., VectorEnv]:
+    """The vector entry point of ``env_id`` (``gym.make_vec(env_id, num_envs=E,
+    vectorization_mode="vector_entry_point", processes=P, **kwargs)``): ``batch`` in this
+    process for ``processes=1`` (the default), else split over ``P`` worker processes."""
+    def make(num_envs: int = 1, processes: int = 1, **kwargs: Any) -> VectorEnv:
+        return split_or_batch(env_id, batch, num_envs, processes, kwargs)
+
+    make.__doc__ = (f"Vector entry point of ``{env_id}``: one :class:`{batch.__name__}` in "
+                    f"this process, or ``processes`` of them in worker processes "
+                    f"(:mod:`sdc_gym.envs.split_vector`).")
+    return make

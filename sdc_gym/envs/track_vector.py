@@ -24,13 +24,12 @@ from __future__ import annotations
 
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium.vector import AutoresetMode
 from numpy.typing import NDArray
 
 from sdc_gym.envs.batch_vector import BatchVectorEnv
-from sdc_gym.envs.split_vector import split_or_batch
+from sdc_gym.envs.split_vector import vector_entry_point
 from sdc_gym.envs.track_behavior_world import TrackBehaviorWorld
 from sdc_gym.envs.track_world import TrackWorld
 from sdc_gym.validation.actions import real_array
@@ -139,17 +138,7 @@ def _vector_info(info: dict[str, Any]) -> dict[str, Any]:
     return info
 
 
-def make_track_behavior_vector_env(num_envs: int = 1, processes: int = 1,
-                                   **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/TrackLoopBehavior-v0``: one batch in this process, or
-    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
-    return split_or_batch("sdc_gym/TrackLoopBehavior-v0", TrackLoopBehaviorVectorEnv, num_envs,
-                          processes, kwargs)
-
-
-def make_track_vector_env(num_envs: int = 1, processes: int = 1,
-                          **kwargs: Any) -> gym.vector.VectorEnv:
-    """Vector entry point of ``sdc_gym/TrackLoop-v0``: one batch in this process, or
-    ``processes`` batches in worker processes (:mod:`sdc_gym.envs.split_vector`)."""
-    return split_or_batch("sdc_gym/TrackLoop-v0", TrackLoopVectorEnv, num_envs,
-                          processes, kwargs)
+make_track_behavior_vector_env = vector_entry_point(
+    "sdc_gym/TrackLoopBehavior-v0", TrackLoopBehaviorVectorEnv)
+make_track_vector_env = vector_entry_point(
+    "sdc_gym/TrackLoop-v0", TrackLoopVectorEnv)
