@@ -30,6 +30,7 @@ import subprocess
 import sys
 from collections.abc import Callable
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -51,6 +52,17 @@ def check_processes(processes: Any, num_envs: int) -> int:
                          f"batch in this process; 2 splits it over both cores), got "
                          f"{excerpt(processes)}")
     return int(processes)
+
+
+def worker_environment() -> dict[str, str]:
+    """This process's environment, with the folder this ``sdc_gym`` was imported from first
+    on ``PYTHONPATH``: a worker imports the same package even when it is not installed
+    (a script that put the checkout on ``sys.path`` itself)."""
+    environment = dict(os.environ)
+    home = str(Path(__file__).resolve().parents[2])
+    environment["PYTHONPATH"] = os.pathsep.join(
+        [home, *filter(None, environment.get("PYTHONPATH", "").split(os.pathsep))])
+    return environment
 
 
 def block_bounds(num_envs: int, processes: int) -> list[tuple[int, int]]:
@@ -112,12 +124,14 @@ class SplitVectorEnv(VectorEnv):
         self._closed = False
         self._connections: list[Connection] = []
         self._workers: list[subprocess.Popen[bytes]] = []
+        environment = worker_environment()
         for start, stop in self.bounds:
             mine, theirs = socket.socketpair()
             try:
                 worker = subprocess.Popen(
                     [sys.executable, "-m", "sdc_gym.envs.split_worker", str(theirs.fileno()),
-                     str(os.getpid())], pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL)
+                     str(os.getpid())], pass_fds=(theirs.fileno(),), stdin=subprocess.DEVNULL,
+                    env=environment)
             finally:
                 theirs.close()
             connection = Connection(mine.detach())
