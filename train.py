@@ -434,6 +434,10 @@ def main(argv: list[str] | None = None) -> Path:
     args = parse_args(argv)
     torch.set_num_threads(args.torch_threads)
     config = run_config(args)  # every value checked, the env config too, before any process
+    if config["framework"] == "rllib" and (args.vectorize != "batch" or args.torch_threads != 1):
+        raise SystemExit(f"--vectorize {args.vectorize} and --torch-threads {args.torch_threads}"
+                         " set SB3's envs and learner; a --framework rllib run samples with "
+                         "RLlib's env runners and takes neither: drop them")
     args.output.mkdir(parents=True, exist_ok=True)
     for stale in remove_stale_temporaries(args.output):  # a killed run's half files
         print(f"removed {stale} (a temporary file of a run that was killed)")

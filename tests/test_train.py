@@ -268,3 +268,12 @@ def test_torch_threads_by_phase_one_while_collecting_all_while_updating():
         torch.set_num_threads(before)
     with pytest.raises(SystemExit):
         train.parse_args(["--torch-threads", "0"])
+
+
+@pytest.mark.parametrize("flags", [["--vectorize", "split"], ["--torch-threads", "2"]])
+def test_sb3_only_flags_are_refused_for_an_rllib_run_before_anything_is_written(tmp_path,
+                                                                                flags):
+    with pytest.raises(SystemExit, match="a --framework rllib run samples with RLlib's env "
+                                         "runners and takes neither: drop them"):
+        train.main(["--framework", "rllib", "--output", str(tmp_path / "run"), *flags])
+    assert not (tmp_path / "run").exists()
