@@ -40,7 +40,13 @@ from gymnasium.vector.utils import batch_space
 
 from sdc_gym.config import excerpt
 from sdc_gym.envs.split_worker import WorkerError
-from sdc_gym.scenarios.options import OPTION, RESET_MASK, check_reset_options, reset_mask
+from sdc_gym.scenarios.options import (
+    OPTION,
+    RESET_MASK,
+    batch_scenarios,
+    check_reset_options,
+    reset_mask,
+)
 from sdc_gym.validation.bounds import check_env_count
 
 
@@ -197,18 +203,14 @@ class SplitVectorEnv(VectorEnv):
                 raise ValueError(f"reset(seed=...) takes an int, None or {self.num_envs} "
                                  f"seeds, got {excerpt(seed)}")
             seeds = [list(seed[start:stop]) for start, stop in self.bounds]
+        scenarios = batch_scenarios(options, self.num_envs)  # per env, checked here
         payloads = []
         for block, (start, stop) in enumerate(self.bounds):
             block_options = None if options is None else dict(options)
             if mask is not None:
                 block_options[RESET_MASK] = mask[start:stop]  # type: ignore[index]
-            if block_options and isinstance(block_options.get(OPTION), list | tuple):
-                scenarios = block_options[OPTION]
-                if len(scenarios) != self.num_envs:
-                    raise ValueError(f"options['scenario'] must be one scenario or a list of "
-                                     f"{self.num_envs} (one per env, None for random "
-                                     f"traffic), got {len(scenarios)}")
-                block_options[OPTION] = list(scenarios[start:stop])
+            if scenarios is not None:
+                block_options[OPTION] = scenarios[start:stop]  # type: ignore[index]
             payloads.append({"seed": seeds[block], "options": block_options})
         answers = self._ask("reset", payloads)
         observations = _concatenate([obs for obs, _ in answers])
@@ -227,10 +229,6 @@ class SplitVectorEnv(VectorEnv):
                                          for k in (1, 2, 3))
         infos = merge_infos([answer[4] for answer in answers], self.bounds, self.num_envs)
         return observations, reward, terminated, truncated, infos
-
-    def get_block_attr(self, name: str) -> list[Any]:
-        """Attribute ``name`` of each block's batch (picklable values only), block order."""
-        return self._ask("attr", [name] * self.processes)
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._closed:

@@ -6,7 +6,7 @@
 :class:`multiprocessing.connection.Connection` (pickled messages). The owner first sends
 ``(entry_point, num_envs, kwargs)``; the worker builds that batch and answers ``("ok",
 (observation space, action space, metadata))``, then each ``(command, payload)``
-(``reset``, ``step``, ``attr``, ``close``) with ``("ok", result)`` or ``("error",
+(``reset``, ``step``, ``close``) with ``("ok", result)`` or ``("error",
 exception)``.
 
 A plain ``python -m`` process, not a ``multiprocessing`` one: ``spawn`` would run the
@@ -76,8 +76,6 @@ def serve(connection: Connection) -> None:
                 answer: Any = vector.step(payload)
             elif command == "reset":
                 answer = vector.reset(**payload)
-            elif command == "attr":
-                answer = getattr(vector, payload)
             elif command == "close":
                 vector.close()
                 connection.send(("ok", None))

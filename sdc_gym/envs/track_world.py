@@ -444,9 +444,9 @@ class TrackWorld:
         one = isinstance(rows, int | np.integer)
         # The columns as float64 (the line index cast as a stack would), then float32;
         # filled in place, which costs a fraction of np.column_stack for one env.
-        columns = np.empty((7,) if one else (len(range(self.envs)[rows]) if isinstance(
-            rows, slice) else len(rows), 7))
-        columns[..., 0:5] = st.vehicle[rows][..., _OBSERVED_CAR_COLUMNS]
+        vehicle = st.vehicle[rows]  # (7,) for one env, (envs, 7) for rows
+        columns = np.empty((*vehicle.shape[:-1], 7))
+        columns[..., 0:5] = vehicle[..., _OBSERVED_CAR_COLUMNS]
         columns[..., 5] = st.next_line[rows]
         columns[..., 6] = st.line_distance[rows]
         values = columns.astype(np.float32)
